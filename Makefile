@@ -1,0 +1,31 @@
+# Two commands: `make twin` runs the twin on its built-in defaults, `make test` runs the tests.
+# Both create .venv on first use (Python 3.11 and PyPI only) and reuse it afterwards.
+PYTHON ?= $(shell command -v python3.11 2>/dev/null || command -v python3)
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed-stamp
+PIP := $(BIN)/python -m pip --disable-pip-version-check -q
+
+.PHONY: setup twin test bench clean
+
+setup: $(STAMP)
+
+$(STAMP): setup.py setup.cfg package.xml
+	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info[:2] == (3, 11) else \
+	  "drill_twin needs Python 3.11 (the ROS 2 Jazzy wheels on PyPI are built for it); set PYTHON=")'
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(PIP) install --upgrade pip
+	$(PIP) install -e '.[ros,test]'
+	@touch $(STAMP)
+
+twin: $(STAMP)
+	$(BIN)/drill-twin modes
+
+test: $(STAMP)
+	$(BIN)/python -m pytest -q
+
+bench: $(STAMP)
+	$(BIN)/python benchmarks/run_all.py
+
+clean:
+	rm -rf $(VENV) build *.egg-info

@@ -1,0 +1,335 @@
+"""The configuration of a drill-string model as frozen dataclasses.
+
+Every quantity is SI and carries its unit in its name. The checks here refuse input
+that is physically impossible; the loader (``loader.py``) turns YAML into these objects
+and prefixes every error with the key path it came from.
+
+Conventions (see ``docs/MODEL-CHOICES.md``): x is the string axis pointing down from the
+top (x = 0) to the bit; forces along x are positive downwards, so the weight on bit of the
+paper (``f_bit``) is negative in compression.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+SectionKind = Literal['drill_pipe', 'heavy_weight_pipe', 'drill_collar', 'other']
+AxialEnd = Literal['free', 'fixed']
+TorsionTop = Literal['driven', 'free']
+TorsionBit = Literal['free', 'fixed']
+LateralEnd = Literal['clamped', 'pinned', 'free']
+CoriolisForm = Literal['gyroscopic', 'paper']
+InitialShape = Literal['first_lateral_mode', 'half_sine']
+
+
+class ConfigValueError(ValueError):
+    """A value that cannot describe a real drill string.
+
+    ``key`` is the dotted path relative to the object that raised it; the loader
+    prefixes the path of that object.
+    """
+
+    def __init__(self, key: str, message: str):
+        super().__init__(f'{key}: {message}')
+        self.key = key
+        self.message = message
+
+
+def _positive(obj, *names: str) -> None:
+    for name in names:
+        value = getattr(obj, name)
+        if not (math.isfinite(value) and value > 0.0):
+            raise ConfigValueError(name, f'must be a finite positive number, got {value!r}')
+
+
+def _non_negative(obj, *names: str) -> None:
+    for name in names:
+        value = getattr(obj, name)
+        if not (math.isfinite(value) and value >= 0.0):
+            raise ConfigValueError(name, f'must be a finite number >= 0, got {value!r}')
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Section:
+    """A run of identical tubulars (drill pipe, heavy-weight pipe, collars).
+
+    Sections are listed top to bottom; ``elements`` finite elements of equal length
+    discretise the section.
+    """
+
+    name: str
+    kind: SectionKind
+    length_m: float
+    outer_diameter_m: float
+    inner_diameter_m: float
+    elements: int
+    young_modulus_pa: float
+    density_kg_per_m3: float
+    poisson_ratio: float
+    shear_correction_factor: float
+
+    def __post_init__(self):
+        _positive(self, 'length_m', 'outer_diameter_m', 'young_modulus_pa',
+                  'density_kg_per_m3', 'shear_correction_factor')
+        _non_negative(self, 'inner_diameter_m')
+        if self.inner_diameter_m >= self.outer_diameter_m:
+            raise ConfigValueError(
+                'inner_diameter_m',
+                f'must be smaller than outer_diameter_m ({self.outer_diameter_m} m), '
+                f'got {self.inner_diameter_m} m')
+        if self.elements < 1:
+            raise ConfigValueError('elements', f'must be at least 1, got {self.elements}')
+        if not -1.0 < self.poisson_ratio < 0.5:
+            raise ConfigValueError('poisson_ratio',
+                                   f'must lie in (-1, 0.5), got {self.poisson_ratio}')
+        if self.shear_correction_factor > 1.0:
+            raise ConfigValueError('shear_correction_factor',
+                                   f'must lie in (0, 1], got {self.shear_correction_factor}')
+
+    @property
+    def shear_modulus_pa(self) -> float:
+        """G = E / (2 (1 + nu)), Pa."""
+        return self.young_modulus_pa / (2.0 * (1.0 + self.poisson_ratio))
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Stabilizer:
+    """A stabilizer modelled as lateral springs at one point (paper Eq. 28)."""
+
+    name: str
+    position_m: float
+    stiffness_n_per_m: float
+
+    def __post_init__(self):
+        _non_negative(self, 'position_m', 'stiffness_n_per_m')
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Borehole:
+    """The hole and the impact/rubbing law between string and wall (Eq. 17-18)."""
+
+    diameter_m: float
+    contact_stiffness_n_per_m: float
+    friction_coefficient: float
+    friction_regularization_rad_per_s: float
+
+    def __post_init__(self):
+        _positive(self, 'diameter_m', 'contact_stiffness_n_per_m',
+                  'friction_regularization_rad_per_s')
+        _non_negative(self, 'friction_coefficient')
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Fluid:
+    """Drilling mud inside the string and in the annulus (Eq. 19-23)."""
+
+    density_kg_per_m3: float
+    inlet_speed_m_per_s: float
+    drag_coefficient: float
+    viscous_damping_n_s_per_m2: float
+    coriolis: CoriolisForm
+
+    def __post_init__(self):
+        _positive(self, 'density_kg_per_m3')
+        _non_negative(self, 'inlet_speed_m_per_s', 'drag_coefficient',
+                      'viscous_damping_n_s_per_m2')
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class BitRock:
+    """The bit-rock law of Eq. 24-26 and the static bit reaction of the prestress."""
+
+    a1_m_per_s: float
+    a2_m_per_n_s: float
+    a3_m_per_rad: float
+    a4_n_rad: float
+    a5_n_m: float
+    regularization_rad_per_s: float
+    static_weight_on_bit_n: float
+
+    def __post_init__(self):
+        _positive(self, 'a2_m_per_n_s', 'regularization_rad_per_s')
+        _non_negative(self, 'a1_m_per_s', 'a3_m_per_rad', 'a4_n_rad', 'a5_n_m')
+        if not math.isfinite(self.static_weight_on_bit_n) or self.static_weight_on_bit_n > 0:
+            raise ConfigValueError(
+                'static_weight_on_bit_n',
+                'must be <= 0 (the rock pushes the bit up; forces are positive downwards), '
+                f'got {self.static_weight_on_bit_n}')
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Bit:
+    """Lumped rigid bit (and motor) at the bottom node."""
+
+    mass_kg: float
+    polar_inertia_kg_m2: float
+
+    def __post_init__(self):
+        _non_negative(self, 'mass_kg', 'polar_inertia_kg_m2')
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Operation:
+    """The rig's set point: top-drive speed and hook load."""
+
+    top_drive_speed_hz: float
+    hook_load_n: float | None = None
+    """None: the hook load of the prestressed state, so that the mean WOB is the static one."""
+
+    def __post_init__(self):
+        if not math.isfinite(self.top_drive_speed_hz):
+            raise ConfigValueError('top_drive_speed_hz', 'must be finite')
+        if self.hook_load_n is not None and not math.isfinite(self.hook_load_n):
+            raise ConfigValueError('hook_load_n', 'must be finite or null')
+
+    @property
+    def top_drive_speed_rad_per_s(self) -> float:
+        """Omega_x in rad/s."""
+        return 2.0 * math.pi * self.top_drive_speed_hz
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Boundary:
+    """End conditions. The top is held by the hook (axially free) and driven in rotation."""
+
+    top_axial: AxialEnd
+    top_torsion: TorsionTop
+    top_lateral: LateralEnd
+    bit_axial: AxialEnd
+    bit_torsion: TorsionBit
+    bit_lateral: LateralEnd
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Physics:
+    """Switches for every physical effect, so that analytic limits can be run."""
+
+    gravity: bool
+    prestress: bool
+    fluid: bool
+    stabilizers: bool
+    contact: bool
+    bit_rock: bool
+    kinetic_coupling: bool
+    finite_strain: bool
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Damping:
+    """Rayleigh damping [C] = alpha ([M] + [M_f]) + beta ([K] + [K_f] + [K_g])."""
+
+    mass_coefficient_per_s: float
+    stiffness_coefficient_s: float
+
+    def __post_init__(self):
+        _non_negative(self, 'mass_coefficient_per_s', 'stiffness_coefficient_s')
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ReducedBasis:
+    """How many normal modes of each type the reduced model keeps (rigid modes are added)."""
+
+    lateral_modes: int
+    torsional_modes: int
+    axial_modes: int
+
+    def __post_init__(self):
+        for name in ('lateral_modes', 'torsional_modes', 'axial_modes'):
+            if getattr(self, name) < 0:
+                raise ConfigValueError(name, f'must be >= 0, got {getattr(self, name)}')
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Integration:
+    """Implicit Newmark (average acceleration) on the reduced model."""
+
+    time_step_s: float
+    tolerance: float
+    max_iterations: int
+
+    def __post_init__(self):
+        _positive(self, 'time_step_s', 'tolerance')
+        if self.max_iterations < 1:
+            raise ConfigValueError('max_iterations',
+                                   f'must be at least 1, got {self.max_iterations}')
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class InitialConditions:
+    """Initial state: rigid axial and rotation speed plus a lateral deflection (Sect. 2.7)."""
+
+    lateral_deflection_m: float
+    lateral_shape: InitialShape
+
+    def __post_init__(self):
+        _non_negative(self, 'lateral_deflection_m')
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Output:
+    """What a simulation records."""
+
+    stations_m: tuple[float, ...]
+    record_interval_s: float
+
+    def __post_init__(self):
+        for index, x in enumerate(self.stations_m):
+            if not (math.isfinite(x) and x >= 0):
+                raise ConfigValueError(f'stations_m.{index}', f'must be >= 0, got {x}')
+        _positive(self, 'record_interval_s')
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class DrillStringConfig:
+    """A whole vertical drill string, its hole, fluid, bit and the model choices."""
+
+    sections: tuple[Section, ...]
+    stabilizers: tuple[Stabilizer, ...]
+    borehole: Borehole
+    fluid: Fluid
+    gravity_m_per_s2: float
+    bit_rock: BitRock
+    bit: Bit
+    operation: Operation
+    boundary: Boundary
+    physics: Physics
+    damping: Damping
+    reduced_basis: ReducedBasis
+    integration: Integration
+    initial_conditions: InitialConditions
+    output: Output
+    source: str = field(default='<defaults>', compare=False)
+    """Where the configuration came from (for error messages and log metadata)."""
+
+    def __post_init__(self):
+        if not self.sections:
+            raise ConfigValueError('sections', 'at least one section is needed')
+        names = [s.name for s in self.sections]
+        for index, name in enumerate(names):
+            if names.index(name) != index:
+                raise ConfigValueError(f'sections.{index}.name', f'duplicate name {name!r}')
+        _positive(self, 'gravity_m_per_s2')
+        hole = self.borehole.diameter_m
+        for index, section in enumerate(self.sections):
+            if section.outer_diameter_m >= hole:
+                raise ConfigValueError(
+                    f'sections.{index}.outer_diameter_m',
+                    f'{section.outer_diameter_m} m does not fit in the borehole '
+                    f'(borehole.diameter_m = {hole} m)')
+        length = self.length_m
+        for index, stabilizer in enumerate(self.stabilizers):
+            if stabilizer.position_m > length:
+                raise ConfigValueError(
+                    f'stabilizers.{index}.position_m',
+                    f'{stabilizer.position_m} m is below the bit (string length {length} m)')
+        for index, x in enumerate(self.output.stations_m):
+            if x > length:
+                raise ConfigValueError(
+                    f'output.stations_m.{index}',
+                    f'{x} m is below the bit (string length {length} m)')
+
+    @property
+    def length_m(self) -> float:
+        """Total string length L, m."""
+        return float(sum(s.length_m for s in self.sections))

@@ -1,0 +1,1 @@
+"""Normal modes of the prestressed string and the reduced basis (paper Sect. 2.10)."""

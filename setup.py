@@ -1,0 +1,47 @@
+"""Build script for drill_twin (ament_python layout, also installable with pip)."""
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = 'drill_twin'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test', 'test.*']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/config', sorted(glob('config/*.yaml'))),
+        # `ros2 run drill_twin twin` looks for an executable in lib/<package>/.
+        ('lib/' + package_name, ['scripts/twin']),
+    ],
+    python_requires='>=3.10',
+    install_requires=[
+        'setuptools',
+        'numpy>=1.24',
+        'scipy>=1.10',
+        'PyYAML>=6.0',
+        'matplotlib>=3.7',
+        'mcap>=1.1',
+        'mcap-ros2-support>=0.5',
+        'rerun-sdk>=0.41',
+        'dask[distributed]>=2024.1',
+    ],
+    extras_require={
+        # rclpy and the message packages come from ROS on a ROS machine; without ROS
+        # they come from PyPI's ROS wheels.
+        'ros': ['ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces'],
+        'test': ['pytest>=7', 'pytest-timeout', 'sympy>=1.12'],
+    },
+    zip_safe=True,
+    maintainer='drill_twin developers',
+    maintainer_email='drill-twin@example.com',
+    description='ROS 2 digital twin of a drill string (Ritto, Soize & Sampaio 2009).',
+    license='Apache-2.0',
+    entry_points={
+        'console_scripts': [
+            'drill-twin = drill_twin.cli.main:main',
+        ],
+    },
+)
