@@ -1,0 +1,83 @@
+"""The twin's ROS interface: topic names, message types, joint names and QoS.
+
+This module imports nothing from ROS so that the recorder, the viewer, the tests and the
+documentation share one definition with the node.
+
+Sign conventions at the boundary (SI units):
+- depth / axial positions are positive downwards (m), ROP > 0 while drilling (m/s);
+- weight on bit (WOB) and torque on bit (TOB) follow the paper: the force and torque the rock
+  applies to the bit, negative while drilling (compression, resisting torque) (N, N m);
+- top-drive speed and bit speed are positive in the drilling direction (rad/s);
+- hook load is the force the hook holds the string up with, positive (N).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+NODE_NAME = 'drill_twin'
+NAMESPACE_PREFIX = '/drill_twin'
+
+# Commands (subscriptions)
+CMD_TOP_DRIVE_SPEED = '/drill_twin/cmd/top_drive_speed'      # std_msgs/msg/Float64, rad/s
+CMD_HOOK_LOAD = '/drill_twin/cmd/hook_load'                  # std_msgs/msg/Float64, N
+
+# Publications
+BIT_STATE = '/drill_twin/bit/state'                          # sensor_msgs/msg/JointState
+BIT_WRENCH = '/drill_twin/bit/wrench'                        # geometry_msgs/msg/WrenchStamped
+TOP_STATE = '/drill_twin/top/state'                          # sensor_msgs/msg/JointState
+CONTACT_FORCES = '/drill_twin/contact/forces'                # std_msgs/msg/Float64MultiArray
+KPI_STICK_SLIP = '/drill_twin/kpi/stick_slip_severity'       # std_msgs/msg/Float64, -
+KPI_MSE = '/drill_twin/kpi/mechanical_specific_energy'       # std_msgs/msg/Float64, Pa
+KPI_ROP = '/drill_twin/kpi/rop_m_per_h'                      # std_msgs/msg/Float64, m/h
+ENSEMBLE_MEAN = '/drill_twin/ensemble/bit_state/mean'        # sensor_msgs/msg/JointState
+ENSEMBLE_LOWER = '/drill_twin/ensemble/bit_state/lower'      # 2.5 % quantile, JointState
+ENSEMBLE_UPPER = '/drill_twin/ensemble/bit_state/upper'      # 97.5 % quantile, JointState
+DIAGNOSTICS = '/diagnostics'                                 # diagnostic_msgs/msg/DiagnosticArray
+CLOCK = '/clock'                                             # rosgraph_msgs/msg/Clock
+ROSOUT = '/rosout'                                           # rcl_interfaces/msg/Log
+
+# Joints of the JointState messages
+BIT_AXIAL = 'bit_axial'        # position = depth (m), velocity = ROP (m/s), effort = WOB (N)
+BIT_ROTATION = 'bit_rotation'  # position = angle (rad), velocity = speed (rad/s), effort = TOB
+TOP_DRIVE = 'top_drive'        # position = angle (rad), velocity = speed, effort = torque (N m)
+HOOK = 'hook'                  # position = block travel (m), velocity (m/s), effort = load (N)
+
+FRAME_BIT = 'drill_twin/bit'
+FRAME_TOP = 'drill_twin/top'
+
+
+def station_name(x_m: float) -> str:
+    """Topic-safe name of a measurement station at depth x, e.g. 700.0 -> 'x700m'."""
+    return f'x{x_m:.0f}m' if abs(x_m - round(x_m)) < 1e-9 else f'x{x_m:.2f}m'.replace('.', 'p')
+
+
+def vibration_imu_topic(x_m: float) -> str:
+    """sensor_msgs/msg/Imu of the station at x (accelerations m/s^2, angular speed rad/s)."""
+    return f'/drill_twin/vibration/{station_name(x_m)}/imu'
+
+
+def vibration_displacement_topic(x_m: float) -> str:
+    """geometry_msgs/msg/Vector3Stamped: x = axial, y = v, z = w displacement (m)."""
+    return f'/drill_twin/vibration/{station_name(x_m)}/displacement'
+
+
+def station_frame(x_m: float) -> str:
+    """frame_id of the station at x."""
+    return f'drill_twin/{station_name(x_m)}'
+
+
+@dataclass(frozen=True)
+class QosSpec:
+    """A QoS profile in plain words (the node and the MCAP metadata are built from it)."""
+
+    reliability: str = 'reliable'     # 'reliable' or 'best_effort'
+    durability: str = 'volatile'      # 'volatile' or 'transient_local'
+    history: str = 'keep_last'
+    depth: int = 10
+
+
+STATE_QOS = QosSpec()
+"""Publications and commands: reliable, volatile, keep last 10 (reaches best-effort
+subscribers too)."""
+DIAGNOSTICS_QOS = QosSpec()
+CLOCK_QOS = QosSpec(reliability='best_effort', depth=1)
