@@ -47,9 +47,20 @@ def load_config(path: str | Path | None = None,
         source = str(path)
         user = _read_yaml(Path(path))
         raw = merge(raw, user)
+    overridden = []
     for item in overrides:
         raw = apply_override(raw, item)
-    return build_config(raw, source=source)
+        overridden.append(item.split('=', 1)[0].strip())
+    try:
+        return build_config(raw, source=source)
+    except ConfigError as error:
+        if any(_same_or_inside(error.key, key) or key in error.message for key in overridden):
+            raise ConfigError('--set', error.key, error.message) from None
+        raise
+
+
+def _same_or_inside(key: str, prefix: str) -> bool:
+    return key == prefix or key.startswith(prefix + '.')
 
 
 def build_config(raw: dict, source: str = '<mapping>') -> DrillStringConfig:
@@ -209,7 +220,7 @@ def _convert(hint, value, key: str):
         item_type = get_args(hint)[0]
         if not isinstance(value, list):
             raise _BuildError(key, f'expected a list, got {_describe(value)}')
-        return tuple(_convert(item_type, item, f'{key}.{index}')
+        return tuple(_convert(item_type, item, f'{key}.{_item_label(item, index)}')
                      for index, item in enumerate(value))
     if hint is bool:
         if not isinstance(value, bool):
@@ -230,6 +241,13 @@ def _convert(hint, value, key: str):
             raise _BuildError(key, f'expected a string, got {_describe(value)}')
         return value
     raise TypeError(f'unsupported configuration type {hint!r} at {key}')
+
+
+def _item_label(item, index: int) -> str:
+    """A list item is named by its ``name`` when it has one, else by its index."""
+    if isinstance(item, dict) and isinstance(item.get('name'), str) and item['name']:
+        return item['name']
+    return str(index)
 
 
 def _describe(value) -> str:

@@ -151,11 +151,8 @@ class BitRock:
     def __post_init__(self):
         _positive(self, 'a2_m_per_n_s', 'regularization_rad_per_s')
         _non_negative(self, 'a1_m_per_s', 'a3_m_per_rad', 'a4_n_rad', 'a5_n_m')
-        if not math.isfinite(self.static_weight_on_bit_n) or self.static_weight_on_bit_n > 0:
-            raise ConfigValueError(
-                'static_weight_on_bit_n',
-                'must be <= 0 (the rock pushes the bit up; forces are positive downwards), '
-                f'got {self.static_weight_on_bit_n}')
+        if not math.isfinite(self.static_weight_on_bit_n):
+            raise ConfigValueError('static_weight_on_bit_n', 'must be finite')
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -311,18 +308,29 @@ class DrillStringConfig:
                 raise ConfigValueError(f'sections.{index}.name', f'duplicate name {name!r}')
         _positive(self, 'gravity_m_per_s2')
         hole = self.borehole.diameter_m
-        for index, section in enumerate(self.sections):
+        for section in self.sections:
             if section.outer_diameter_m >= hole:
                 raise ConfigValueError(
-                    f'sections.{index}.outer_diameter_m',
+                    f'sections.{section.name}.outer_diameter_m',
                     f'{section.outer_diameter_m} m does not fit in the borehole '
                     f'(borehole.diameter_m = {hole} m)')
         length = self.length_m
-        for index, stabilizer in enumerate(self.stabilizers):
+        for stabilizer in self.stabilizers:
             if stabilizer.position_m > length:
                 raise ConfigValueError(
-                    f'stabilizers.{index}.position_m',
+                    f'stabilizers.{stabilizer.name}.position_m',
                     f'{stabilizer.position_m} m is below the bit (string length {length} m)')
+        if self.physics.bit_rock and self.bit_rock.static_weight_on_bit_n > 0:
+            raise ConfigValueError(
+                'bit_rock.static_weight_on_bit_n',
+                'must be <= 0 while the bit drills (the rock pushes the bit up; forces are '
+                f'positive downwards), got {self.bit_rock.static_weight_on_bit_n}')
+        if self.physics.fluid and self.fluid.inlet_speed_m_per_s > 0:
+            for section in self.sections:
+                if section.inner_diameter_m <= 0:
+                    raise ConfigValueError(
+                        f'sections.{section.name}.inner_diameter_m',
+                        'a solid section cannot carry the mud flow (fluid.inlet_speed_m_per_s > 0)')
         for index, x in enumerate(self.output.stations_m):
             if x > length:
                 raise ConfigValueError(

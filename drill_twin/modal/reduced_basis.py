@@ -96,3 +96,13 @@ def reduce_matrices(model: FiniteElementModel, basis: ReducedBasis) -> ReducedMa
         mass_driven=phi.T @ (mass @ psi),
         damping_driven=phi.T @ (damping @ psi),
     )
+
+
+def modal_analysis(config) -> tuple[FiniteElementModel, NormalModes, ReducedBasis]:
+    """Assemble the model of ``config``, solve its modes and select the reduced basis."""
+    from drill_twin.fem.model import build_model
+    from drill_twin.modal.normal_modes import solve_normal_modes
+
+    model = build_model(config)
+    modes = solve_normal_modes(model)
+    return model, modes, select_basis(model, modes, config.reduced_basis)

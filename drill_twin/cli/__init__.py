@@ -1,0 +1,1 @@
+"""The ``drill-twin`` command line: one module per subcommand, wired in ``main``."""
