@@ -21,7 +21,8 @@ def config_directory() -> Path:
     package_dir = Path(__file__).resolve().parents[1]
     candidates.append(package_dir.parent / 'config')
     # <prefix>/lib/pythonX.Y/site-packages/drill_twin -> <prefix>/share/drill_twin/config
-    candidates.append(package_dir.parents[2] / 'share' / 'drill_twin' / 'config')
+    if len(package_dir.parents) > 3:
+        candidates.append(package_dir.parents[3] / 'share' / 'drill_twin' / 'config')
     candidates.append(Path(sys.prefix) / 'share' / 'drill_twin' / 'config')
     for directory in candidates:
         if (directory / DEFAULT_CONFIG_NAME).is_file():

@@ -121,27 +121,41 @@ def fluid_stiffness_matrices(config: DrillStringConfig, flow: FlowField,
                             rotation_like, quad.weight_m))
 
 
+def fluid_viscous_damping_matrices(config: DrillStringConfig, flow: FlowField,
+                                   quad: ElementQuadrature) -> np.ndarray:
+    """Viscous part of [C_f]^e: (C_f rho_f D_o U_o / 2 + k) on the lateral displacements."""
+    fluid = config.fluid
+    value = quad.rows.value
+    viscous = (0.5 * fluid.drag_coefficient * fluid.density_kg_per_m3 * flow.outer_diameter_m
+               * flow.annulus_speed_m_per_s + fluid.viscous_damping_n_s_per_m2)[:, None]
+    return _lateral_gram(value[:, :, sf.FIELD_V], value[:, :, sf.FIELD_W], viscous,
+                         quad.weight_m)
+
+
+def coriolis_coefficient(config: DrillStringConfig, flow: FlowField) -> np.ndarray:
+    """c = 2 M_f U_i - 2 chi rho_f A_o U_o of each element (kg/s)."""
+    return (2.0 * flow.inner_fluid_mass_kg_per_m * flow.inner_speed_m_per_s
+            - 2.0 * flow.chi * config.fluid.density_kg_per_m3 * flow.outer_area_m2
+            * flow.annulus_speed_m_per_s)
+
+
+def fluid_coriolis_matrices(config: DrillStringConfig, flow: FlowField,
+                            quad: ElementQuadrature) -> np.ndarray:
+    """Coriolis part of [C_f]^e (see the module docstring for the two forms)."""
+    value, slope = quad.rows.value, quad.rows.slope
+    c = coriolis_coefficient(config, flow)[:, None]
+    if config.fluid.coriolis == 'gyroscopic':
+        return sum(weighted_gram(value[:, :, f], slope[:, :, f], c, quad.weight_m)
+                   for f in (sf.FIELD_V, sf.FIELD_W))
+    return _lateral_gram(value[:, :, sf.FIELD_THETA_Y], value[:, :, sf.FIELD_THETA_Z], -c,
+                         quad.weight_m)
+
+
 def fluid_damping_matrices(config: DrillStringConfig, flow: FlowField,
                            quad: ElementQuadrature) -> np.ndarray:
-    """[C_f]^e: viscous lateral damping plus the Coriolis term (see module docstring)."""
-    fluid = config.fluid
-    rho_f = fluid.density_kg_per_m3
-    value, slope = quad.rows.value, quad.rows.slope
-    viscous = (0.5 * fluid.drag_coefficient * rho_f * flow.outer_diameter_m
-               * flow.annulus_speed_m_per_s + fluid.viscous_damping_n_s_per_m2)[:, None]
-    damping = _lateral_gram(value[:, :, sf.FIELD_V], value[:, :, sf.FIELD_W], viscous,
-                            quad.weight_m)
-    coriolis = (2.0 * flow.inner_fluid_mass_kg_per_m * flow.inner_speed_m_per_s
-                - 2.0 * flow.chi * rho_f * flow.outer_area_m2 * flow.annulus_speed_m_per_s)
-    coriolis = coriolis[:, None]
-    if fluid.coriolis == 'gyroscopic':
-        for field in (sf.FIELD_V, sf.FIELD_W):
-            damping += weighted_gram(value[:, :, field], slope[:, :, field], coriolis,
-                                     quad.weight_m)
-    else:
-        damping += _lateral_gram(value[:, :, sf.FIELD_THETA_Y], value[:, :, sf.FIELD_THETA_Z],
-                                 -coriolis, quad.weight_m)
-    return damping
+    """[C_f]^e: viscous lateral damping plus the Coriolis term."""
+    return (fluid_viscous_damping_matrices(config, flow, quad)
+            + fluid_coriolis_matrices(config, flow, quad))
 
 
 def fluid_axial_loads(config: DrillStringConfig, flow: FlowField, quad: ElementQuadrature,

@@ -1,0 +1,47 @@
+"""Shared fixtures: the default configuration and model, and configuration builders."""
+from __future__ import annotations
+
+import copy
+import os
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).parent))
+
+from drill_twin.config.loader import _read_yaml, build_config, merge  # noqa: E402
+from drill_twin.config.paths import default_config_path  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[1]
+
+# Rerun writes analytics ids under the user's config directory: keep tests out of $HOME.
+os.environ.setdefault('RERUN_TELEMETRY', '0')
+
+
+def default_raw() -> dict:
+    """The built-in defaults as a plain mapping (a fresh copy)."""
+    return copy.deepcopy(_read_yaml(default_config_path()))
+
+
+def config_with(changes: dict):
+    """The defaults with ``changes`` merged in (lists replaced whole)."""
+    return build_config(merge(default_raw(), changes), source='<test>')
+
+
+def physics_off() -> dict:
+    """Every physical effect switched off."""
+    return {name: False for name in default_raw()['physics']}
+
+
+@pytest.fixture(scope='session')
+def default_config():
+    from drill_twin.config import load_config
+    return load_config()
+
+
+@pytest.fixture(scope='session')
+def default_analysis(default_config):
+    """(model, modes, basis) of the default configuration."""
+    from drill_twin.modal.reduced_basis import modal_analysis
+    return modal_analysis(default_config)

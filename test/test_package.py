@@ -1,0 +1,77 @@
+"""The package installs as an ament_python package and keeps its core free of ROS."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import sysconfig
+import xml.etree.ElementTree as ET
+
+import pytest
+from conftest import REPO
+
+
+def test_package_xml():
+    root = ET.parse(REPO / 'package.xml').getroot()
+    assert root.get('format') == '3'
+    assert root.findtext('name') == 'drill_twin'
+    assert root.find('export/build_type').text == 'ament_python'
+    depends = {e.text for e in root.findall('exec_depend')}
+    assert {'rclpy', 'std_msgs', 'sensor_msgs', 'geometry_msgs', 'diagnostic_msgs'} <= depends
+
+
+def test_layout():
+    for path in ('setup.py', 'setup.cfg', 'resource/drill_twin', 'config/ritto2009.yaml',
+                 'drill_twin/__init__.py', 'scripts/twin'):
+        assert (REPO / path).exists(), path
+    assert os.access(REPO / 'scripts/twin', os.X_OK)
+
+
+@pytest.fixture(scope='module')
+def installed_prefix(tmp_path_factory):
+    """A real (non-editable) pip install of the package into a fresh prefix."""
+    prefix = tmp_path_factory.mktemp('prefix')
+    subprocess.run([sys.executable, '-m', 'pip', 'install', '--quiet', '--no-deps',
+                    '--no-build-isolation', '--disable-pip-version-check', '--prefix',
+                    str(prefix), str(REPO)], check=True, capture_output=True, timeout=300)
+    return prefix
+
+
+def test_install_puts_the_ament_files_in_place(installed_prefix):
+    share = installed_prefix / 'share'
+    assert (share / 'ament_index/resource_index/packages/drill_twin').is_file()
+    assert (share / 'drill_twin/package.xml').is_file()
+    assert (share / 'drill_twin/config/ritto2009.yaml').is_file()
+    launcher = installed_prefix / 'lib/drill_twin/twin'
+    assert launcher.is_file() and os.access(launcher, os.X_OK)
+    assert (installed_prefix / 'bin/drill-twin').is_file()
+
+
+def test_installed_command_finds_its_configuration(installed_prefix):
+    """The installed copy (not the source tree) must find share/drill_twin/config."""
+    purelib = sysconfig.get_path('purelib', vars={'base': str(installed_prefix),
+                                                  'platbase': str(installed_prefix)})
+    env = dict(os.environ, PYTHONPATH=purelib)
+    result = subprocess.run([sys.executable, str(installed_prefix / 'bin/drill-twin'), 'modes',
+                             '--count', '1', '--json'], capture_output=True, text=True,
+                            env=env, cwd=installed_prefix, timeout=120)
+    assert result.returncode == 0, result.stderr
+    probe = subprocess.run([sys.executable, '-c',
+                            'import drill_twin.config.paths as p; print(p.default_config_path())'],
+                           capture_output=True, text=True, env=env, cwd=installed_prefix)
+    assert probe.stdout.strip().startswith(str(installed_prefix / 'share/drill_twin/config'))
+
+
+def test_core_never_imports_rclpy():
+    code = ('import sys\n'
+            'import drill_twin.config, drill_twin.fem.model, drill_twin.modal.reduced_basis\n'
+            'import drill_twin.cli.main, drill_twin.interface\n'
+            'assert "rclpy" not in sys.modules, "the core imported rclpy"\n')
+    subprocess.run([sys.executable, '-c', code], check=True, timeout=60)
+
+
+def test_console_command_lists_subcommands():
+    result = subprocess.run([sys.executable, '-m', 'drill_twin.cli.main', '--help'],
+                            capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0
+    assert 'modes' in result.stdout
