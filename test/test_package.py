@@ -31,10 +31,21 @@ def test_layout():
 def installed_prefix(tmp_path_factory):
     """A real (non-editable) pip install of the package into a fresh prefix."""
     prefix = tmp_path_factory.mktemp('prefix')
+    before = _installed_location()
+    # --ignore-installed: without it pip first uninstalls the copy in the running
+    # environment (the developer's editable install).
     subprocess.run([sys.executable, '-m', 'pip', 'install', '--quiet', '--no-deps',
-                    '--no-build-isolation', '--disable-pip-version-check', '--prefix',
-                    str(prefix), str(REPO)], check=True, capture_output=True, timeout=300)
+                    '--ignore-installed', '--no-build-isolation', '--disable-pip-version-check',
+                    '--prefix', str(prefix), str(REPO)], check=True, capture_output=True,
+                   timeout=300)
+    assert _installed_location() == before, 'installing into a prefix disturbed the venv'
     return prefix
+
+
+def _installed_location():
+    result = subprocess.run([sys.executable, '-c', 'import drill_twin; print(drill_twin.__file__)'],
+                            capture_output=True, text=True, cwd='/', timeout=60)
+    return result.stdout.strip()
 
 
 def test_install_puts_the_ament_files_in_place(installed_prefix):
