@@ -1,0 +1,156 @@
+"""Read an MCAP log back: messages deserialized with rclpy, topics and metadata records.
+
+Reading goes through the file front to back (no index needed), so a file cut short by a
+crash yields every message of its complete chunks and stops quietly at the first record it
+cannot read (pass ``strict=True`` to get :class:`TruncatedLogError` instead).  Chunk CRCs
+are checked, so a half-written chunk is never decoded.
+
+rclpy is imported by :func:`iter_messages` only.
+"""
+from __future__ import annotations
+
+import os
+import struct
+from typing import Any, Iterable, Iterator, NamedTuple
+
+from mcap.exceptions import McapError
+from mcap.opcode import Opcode
+from mcap.reader import make_reader
+from mcap.records import Channel, Message, Metadata, Schema
+from mcap.stream_reader import StreamReader
+from mcap.writer import MCAP0_MAGIC
+
+from drill_twin.recording.message_types import import_message_class
+
+# What reading a cut-off or damaged file raises: EndOfFile and friends (McapError), chunk
+# CRC mismatches (ValueError), short fixed-size fields (struct.error), decompression errors.
+_FOOTER_RECORD_SIZE = 1 + 8 + 8 + 8 + 4   # opcode, length, summary_start, offset_start, crc
+_DAMAGE = (McapError, ValueError, struct.error, EOFError, OSError, RuntimeError)
+
+
+class TruncatedLogError(McapError):
+    """The log ends (or is damaged) before its footer; raised only with ``strict=True``."""
+
+
+class LogMessage(NamedTuple):
+    """One message of a log; times in integer nanoseconds."""
+
+    topic: str
+    type_name: str
+    message: Any
+    log_time_ns: int
+    publish_time_ns: int
+
+
+def iter_records(path: str | os.PathLike, *, emit_chunks: bool = False,
+                 strict: bool = False) -> Iterator[Any]:
+    """Yield the MCAP records (``mcap.records``) of a log in file order.
+
+    Records inside chunks are yielded unless ``emit_chunks``.  Stops (or, if ``strict``,
+    raises :class:`TruncatedLogError`) at the first unreadable record.
+    """
+    with open(path, 'rb') as stream:
+        reader = StreamReader(stream, emit_chunks=emit_chunks, validate_crcs=True)
+        records = reader.records
+        while True:
+            try:
+                record = next(records)
+            except StopIteration:
+                return
+            except _DAMAGE as error:
+                if strict:
+                    raise TruncatedLogError(f'{path}: unreadable from here on: {error!r}'
+                                            ) from error
+                return
+            yield record
+
+
+def iter_raw(path: str | os.PathLike, topics: Iterable[str] | None = None, *,
+             strict: bool = False) -> Iterator[tuple[Schema | None, Channel, Message]]:
+    """Yield (schema, channel, message) records of the readable part of a log in order."""
+    wanted = None if topics is None else set(topics)
+    schemas: dict[int, Schema] = {}
+    channels: dict[int, Channel] = {}
+    for record in iter_records(path, emit_chunks=False, strict=strict):
+        if isinstance(record, Message):
+            channel = channels.get(record.channel_id)
+            if channel is None:
+                if strict:
+                    raise TruncatedLogError(f'{path}: message on unknown channel '
+                                            f'{record.channel_id}')
+                continue
+            if wanted is None or channel.topic in wanted:
+                yield schemas.get(channel.schema_id), channel, record
+        elif isinstance(record, Schema):
+            schemas[record.id] = record
+        elif isinstance(record, Channel):
+            channels[record.id] = record
+
+
+def iter_messages(path: str | os.PathLike, topics: Iterable[str] | None = None, *,
+                  strict: bool = False) -> Iterator[LogMessage]:
+    """Messages of a log deserialized with rclpy, in file order (= write order).
+
+    :param topics: only these topics (default: all).
+    :param strict: raise :class:`TruncatedLogError` instead of stopping at damage.
+    """
+    from rclpy.serialization import deserialize_message
+
+    for schema, channel, record in iter_raw(path, topics, strict=strict):
+        if schema is None:
+            raise McapError(f'{path}: topic {channel.topic} has no schema')
+        message = deserialize_message(record.data, import_message_class(schema.name))
+        yield LogMessage(channel.topic, schema.name, message, record.log_time,
+                         record.publish_time)
+
+
+def _has_footer(stream) -> bool:
+    """Tell whether the file ends with a Footer record and the closing magic."""
+    tail = len(MCAP0_MAGIC) + _FOOTER_RECORD_SIZE
+    if stream.seek(0, os.SEEK_END) < len(MCAP0_MAGIC) + tail:
+        return False
+    stream.seek(-tail, os.SEEK_END)
+    data = stream.read(tail)
+    return data[0] == Opcode.FOOTER and data[-len(MCAP0_MAGIC):] == MCAP0_MAGIC
+
+
+def _summary(path: str | os.PathLike):
+    """Return the summary section, or None if the file is unfinished or has none."""
+    try:
+        with open(path, 'rb') as stream:
+            if not _has_footer(stream):
+                return None
+            stream.seek(0)
+            return make_reader(stream).get_summary()
+    except _DAMAGE:
+        return None
+
+
+def topics(path: str | os.PathLike) -> dict[str, str]:
+    """{topic: 'pkg/msg/Type'} of a log (from the summary, else by scanning the file)."""
+    summary = _summary(path)
+    if summary is not None and summary.channels:
+        return {channel.topic: summary.schemas[channel.schema_id].name
+                for channel in summary.channels.values()}
+    schemas: dict[int, str] = {}
+    found: dict[str, str] = {}
+    for record in iter_records(path, emit_chunks=False, strict=False):
+        if isinstance(record, Schema):
+            schemas[record.id] = record.name
+        elif isinstance(record, Channel):
+            found[record.topic] = schemas.get(record.schema_id, '')
+    return found
+
+
+def read_metadata(path: str | os.PathLike) -> dict[str, dict[str, str]]:
+    """{record name: {key: value}} of the metadata records of a log (later ones win)."""
+    result: dict[str, dict[str, str]] = {}
+    for record in iter_records(path, emit_chunks=True, strict=False):
+        if isinstance(record, Metadata):
+            result[record.name] = dict(record.metadata)
+    return result
+
+
+def is_complete(path: str | os.PathLike) -> bool:
+    """Tell whether the log was finished (it has a readable footer and summary)."""
+    return _summary(path) is not None

@@ -1,0 +1,61 @@
+"""The twin's topics as the recorder sees them: topic -> (message type, offered QoS).
+
+Built from the names in :mod:`drill_twin.interface`; the vibration topics depend on the
+measurement stations (depths in m along the string).
+"""
+from __future__ import annotations
+
+from typing import Iterable, NamedTuple
+
+from drill_twin import interface as itf
+from drill_twin.interface import QosSpec
+
+ROSOUT_QOS = QosSpec(reliability='reliable', durability='transient_local', depth=1000)
+"""What rcl's /rosout publisher offers (its 10 s lifespan is not expressible in QosSpec)."""
+
+JOINT_STATE = 'sensor_msgs/msg/JointState'
+WRENCH_STAMPED = 'geometry_msgs/msg/WrenchStamped'
+IMU = 'sensor_msgs/msg/Imu'
+VECTOR3_STAMPED = 'geometry_msgs/msg/Vector3Stamped'
+FLOAT64_MULTI_ARRAY = 'std_msgs/msg/Float64MultiArray'
+FLOAT64 = 'std_msgs/msg/Float64'
+DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
+CLOCK = 'rosgraph_msgs/msg/Clock'
+LOG = 'rcl_interfaces/msg/Log'
+
+
+class TopicSpec(NamedTuple):
+    """Message type ('pkg/msg/Type') and offered QoS of one topic."""
+
+    type_name: str
+    qos: QosSpec
+
+
+def twin_topics(stations_m: Iterable[float] = ()) -> dict[str, TopicSpec]:
+    """List every topic the twin publishes or subscribes.
+
+    :param stations_m: depths (m) of the measurement stations (one IMU and one
+        displacement topic each).
+    """
+    state, diagnostics, clock = itf.STATE_QOS, itf.DIAGNOSTICS_QOS, itf.CLOCK_QOS
+    result = {
+        itf.CMD_TOP_DRIVE_SPEED: TopicSpec(FLOAT64, state),
+        itf.CMD_HOOK_LOAD: TopicSpec(FLOAT64, state),
+        itf.BIT_STATE: TopicSpec(JOINT_STATE, state),
+        itf.BIT_WRENCH: TopicSpec(WRENCH_STAMPED, state),
+        itf.TOP_STATE: TopicSpec(JOINT_STATE, state),
+        itf.CONTACT_FORCES: TopicSpec(FLOAT64_MULTI_ARRAY, state),
+        itf.KPI_STICK_SLIP: TopicSpec(FLOAT64, state),
+        itf.KPI_MSE: TopicSpec(FLOAT64, state),
+        itf.KPI_ROP: TopicSpec(FLOAT64, state),
+        itf.ENSEMBLE_MEAN: TopicSpec(JOINT_STATE, state),
+        itf.ENSEMBLE_LOWER: TopicSpec(JOINT_STATE, state),
+        itf.ENSEMBLE_UPPER: TopicSpec(JOINT_STATE, state),
+        itf.DIAGNOSTICS: TopicSpec(DIAGNOSTIC_ARRAY, diagnostics),
+        itf.CLOCK: TopicSpec(CLOCK, clock),
+        itf.ROSOUT: TopicSpec(LOG, ROSOUT_QOS),
+    }
+    for x_m in stations_m:
+        result[itf.vibration_imu_topic(x_m)] = TopicSpec(IMU, state)
+        result[itf.vibration_displacement_topic(x_m)] = TopicSpec(VECTOR3_STAMPED, state)
+    return result
