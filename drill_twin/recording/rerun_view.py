@@ -138,6 +138,7 @@ def _bit_tab():
             joint_entity(state, 'effort'): _joint_line(['WOB', 'TOB (state)'], _SECOND, BLUE, 4.0),
             itf.BIT_WRENCH: _field_line('TOB (wrench torque.x)', wrench, '.wrench.torque.x',
                                         ORANGE)}),
+        _float64_plot('Stick-slip severity (-)', itf.KPI_STICK_SLIP, 'stick-slip severity'),
         grid_columns=2, name='Bit')
 
 
@@ -218,31 +219,36 @@ def _top_tab():
         grid_columns=2, name='Top drive')
 
 
-def _log_tab():
+def _diagnostics_tab():
     import rerun.blueprint as rrb
+    from rerun.blueprint.archetypes import DataframeQuery
+    from rerun.blueprint.components import ComponentColumnSelector
 
-    return rrb.Vertical(
-        rrb.TextLogView(name='/rosout', origin=itf.ROSOUT),
-        rrb.DataframeView(name='/diagnostics', origin=itf.DIAGNOSTICS),
-        row_shares=[2, 1], name='Log')
+    message = ComponentColumnSelector(
+        entity_path=itf.DIAGNOSTICS,
+        component=message_component('diagnostic_msgs/msg/DiagnosticArray'))
+    query = DataframeQuery(timeline=TIMELINE, select=[TIMELINE, message],
+                           auto_scroll=True)
+    return rrb.DataframeView(name='/diagnostics', origin=itf.DIAGNOSTICS, query=query)
 
 
-TABS = ('Bit', 'Ensemble', 'Vibration', 'Contact & KPIs', 'Top drive', 'Log')
+TABS = ('Bit', 'Ensemble', 'Vibration', 'Contact & KPIs', 'Top drive', '/diagnostics')
 
 
 def twin_blueprint(stations_m: Sequence[float] = (), *, active_tab: int | str = 0):
     """Build the rerun blueprint for a twin log with stations at ``stations_m`` (m).
 
     Tabs (see :data:`TABS`): bit state and wrench; ensemble mean with 2.5/97.5 % bounds;
-    vibration per station; contact forces and KPIs; top drive with its commands; /rosout
-    and /diagnostics.
+    vibration per station; contact forces and KPIs; top drive with its commands;
+    /diagnostics.  Below the tabs, /rosout stays in view.
     """
     import rerun.blueprint as rrb
 
     tabs = rrb.Tabs(_bit_tab(), _ensemble_tab(), _vibration_tab(list(stations_m)),
-                    _contact_kpi_tab(), _top_tab(), _log_tab(), active_tab=active_tab)
-    return rrb.Blueprint(tabs, rrb.TimePanel(timeline=TIMELINE), auto_views=False,
-                         collapse_panels=False)
+                    _contact_kpi_tab(), _top_tab(), _diagnostics_tab(), active_tab=active_tab)
+    rosout = rrb.TextLogView(name='/rosout', origin=itf.ROSOUT)
+    return rrb.Blueprint(rrb.Vertical(tabs, rosout, row_shares=[5, 1]),
+                         rrb.TimePanel(timeline=TIMELINE), auto_views=False)
 
 
 # -- files and viewer --------------------------------------------------------------------------
