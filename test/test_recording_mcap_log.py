@@ -307,3 +307,19 @@ def test_per_message_cost_is_small(tmp_path):
             log.write(itf.BIT_STATE, msg, i)
         per_message = (time.perf_counter() - start) / n
     assert per_message < 300e-6, f'{per_message * 1e6:.0f} us per message'
+
+
+@pytest.mark.parametrize('compression', ['zstd', 'lz4'])
+def test_compressed_chunks_and_their_cut_prefix(tmp_path, compression):
+    path = tmp_path / f'{compression}.mcap'
+    with McapLog(path, compression=compression, chunk_size=2048) as log:
+        log.add_topic(itf.KPI_MSE, 'std_msgs/msg/Float64')
+        for i in range(2000):
+            log.write(itf.KPI_MSE, float64(float(i)), i)
+    assert [m.message.data for m in reader.iter_messages(path)] == [float(i) for i in
+                                                                    range(2000)]
+    assert len(list(read_ros2_messages(str(path)))) == 2000
+    cut = tmp_path / 'cut.mcap'
+    cut.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+    values = [m.message.data for m in reader.iter_messages(cut)]
+    assert 0 < len(values) < 2000 and values == [float(i) for i in range(len(values))]

@@ -9,8 +9,8 @@ import pytest
 from drill_twin import interface as itf
 from drill_twin.recording.mcap_log import McapLog
 from drill_twin.recording.rerun_view import (
-    APPLICATION_ID, joint_entity, rerun_executable, save_rrd, stations_from_topics, TABS,
-    twin_blueprint)
+    APPLICATION_ID, joint_entity, open_viewer, rerun_executable, save_rrd,
+    stations_from_topics, TABS, twin_blueprint)
 from drill_twin.recording.synthetic import write_synthetic_log
 from drill_twin.recording.topics import JOINT_STATE, twin_topics
 
@@ -142,3 +142,13 @@ def test_empty_log_converts(rerun_env, tmp_path):
             log.add_topic(topic, spec.type_name, spec.qos)
     save_rrd(path, tmp_path / 'empty.rrd', stations_m=())
     assert (tmp_path / 'empty.rrd').stat().st_size > 0
+
+
+def test_open_viewer_starts_rerun_on_the_rrd(log_path, rerun_env, tmp_path):
+    # No display here: '--version' makes the real viewer binary exit right after parsing
+    # its arguments (the .rrd path first, as a user's viewer gets it).
+    process = open_viewer(log_path, rrd_dir=tmp_path, extra_args=['--version'])
+    assert process.wait(timeout=60) == 0
+    assert process.args[0] == rerun_executable()
+    assert process.args[1] == str(tmp_path / 'twin.rrd')
+    assert (tmp_path / 'twin.rrd').stat().st_size > 0

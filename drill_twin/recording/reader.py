@@ -22,10 +22,16 @@ from mcap.writer import MCAP0_MAGIC
 
 from drill_twin.recording.message_types import import_message_class
 
+try:
+    from zstandard import ZstdError
+except ImportError:                        # pragma: no cover - zstandard comes with mcap
+    ZstdError = McapError
+
 # What reading a cut-off or damaged file raises: EndOfFile and friends (McapError), chunk
-# CRC mismatches (ValueError), short fixed-size fields (struct.error), decompression errors.
+# CRC mismatches (ValueError), short fixed-size fields (struct.error), decompression errors
+# (ZstdError, and RuntimeError from lz4).
 _FOOTER_RECORD_SIZE = 1 + 8 + 8 + 8 + 4   # opcode, length, summary_start, offset_start, crc
-_DAMAGE = (McapError, ValueError, struct.error, EOFError, OSError, RuntimeError)
+_DAMAGE = (McapError, ValueError, struct.error, EOFError, ZstdError, RuntimeError)
 
 
 class TruncatedLogError(McapError):
@@ -130,7 +136,7 @@ def topics(path: str | os.PathLike) -> dict[str, str]:
     """{topic: 'pkg/msg/Type'} of a log (from the summary, else by scanning the file)."""
     summary = _summary(path)
     if summary is not None and summary.channels:
-        return {channel.topic: summary.schemas[channel.schema_id].name
+        return {channel.topic: getattr(summary.schemas.get(channel.schema_id), 'name', '')
                 for channel in summary.channels.values()}
     schemas: dict[int, str] = {}
     found: dict[str, str] = {}
