@@ -117,10 +117,15 @@ def test_save_rrd_of_a_log_cut_short(rerun_env, tmp_path):
     assert {itf.KPI_ROP, joint_entity(itf.BIT_STATE, 'velocity')} <= entities
 
 
-def test_blueprint_variants(rerun_env):
+def test_blueprint_variants(rerun_env, tmp_path):
     assert len(TABS) == 6
-    for stations in ((), (500.0,), (500.0, 1000.0, 1500.0)):
-        twin_blueprint(stations, active_tab='Vibration')
+    for i, stations in enumerate(((), (500.0,), (500.0, 1000.0, 1500.0))):
+        for tab in (TABS[i], i + 3):
+            path = tmp_path / f'layout_{i}_{tab}.rbl'
+            twin_blueprint(stations, active_tab=tab).save(APPLICATION_ID, path)
+            assert path.stat().st_size > 0
+    with pytest.raises(ValueError):
+        twin_blueprint((), active_tab='No such tab')
     topics = [itf.vibration_imu_topic(x) for x in (1200.0, 700.0, 950.25)]
     topics += [itf.vibration_displacement_topic(700.0), itf.BIT_STATE]
     assert stations_from_topics(topics) == [700.0, 950.25, 1200.0]

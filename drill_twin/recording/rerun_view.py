@@ -244,11 +244,14 @@ def twin_blueprint(stations_m: Sequence[float] = (), *, active_tab: int | str = 
     """
     import rerun.blueprint as rrb
 
+    if isinstance(active_tab, str):
+        active_tab = TABS.index(active_tab)          # rerun matches names of views only
     tabs = rrb.Tabs(_bit_tab(), _ensemble_tab(), _vibration_tab(list(stations_m)),
                     _contact_kpi_tab(), _top_tab(), _diagnostics_tab(), active_tab=active_tab)
     rosout = rrb.TextLogView(name='/rosout', origin=itf.ROSOUT)
     return rrb.Blueprint(rrb.Vertical(tabs, rosout, row_shares=[5, 1]),
-                         rrb.TimePanel(timeline=TIMELINE), auto_views=False)
+                         rrb.TimePanel(timeline=TIMELINE, state='collapsed'),
+                         rrb.SelectionPanel(state='collapsed'), auto_views=False)
 
 
 # -- files and viewer --------------------------------------------------------------------------
