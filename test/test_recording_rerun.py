@@ -12,7 +12,7 @@ from drill_twin.recording.rerun_view import (
     APPLICATION_ID, joint_entity, open_viewer, rerun_executable, save_rrd,
     stations_from_topics, TABS, twin_blueprint)
 from drill_twin.recording.synthetic import write_synthetic_log
-from drill_twin.recording.topics import JOINT_STATE, twin_topics
+from drill_twin.recording.topics import BIT_JOINTS, JOINT_STATE, TOP_JOINTS, twin_topics
 
 STATIONS_M = (600.0, 1200.0)
 CHUNK_LINE = re.compile(r'^Chunk\(\S+\) with \d+ rows \([^)]*\) - (\S+) - data columns: \[(.*)\]$')
@@ -80,6 +80,14 @@ def test_cli_conversion_has_every_topic(log_path, rerun_env, tmp_path):
     assert 'geometry_msgs.msg.Vector3Stamped:message' in columns[
         itf.vibration_displacement_topic(1200.0)]
     assert 'drill_twin' in columns['/__mcap_metadata']
+    # the instance order the blueprint's visible_series relies on
+    verbose = subprocess.run([rerun_executable(), 'rrd', 'print', '-vvv', str(rrd)],
+                             env=rerun_env, capture_output=True, text=True, check=True,
+                             timeout=60).stdout
+    assert '[{}, {}]'.format(*BIT_JOINTS) in verbose
+    assert '[{}, {}]'.format(*TOP_JOINTS) in verbose
+    assert ('[gyroscope/x, gyroscope/y, gyroscope/z, accelerometer/x, accelerometer/y, '
+            'accelerometer/z]') in verbose
 
 
 def test_save_rrd_is_self_contained_with_blueprint(log_path, rerun_env, tmp_path):

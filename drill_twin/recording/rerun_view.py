@@ -7,7 +7,9 @@ How rerun's MCAP importer lays out a ROS 2 log (``ros2msg`` schemas, CDR message
   header, ``ros2_timestamp`` (the header stamp);
 - ``sensor_msgs/JointState`` becomes three child entities ``<topic>/position``,
   ``<topic>/velocity`` and ``<topic>/effort``, each a ``Scalars`` batch with one instance per
-  joint in message order (series named after the joints);
+  joint in message order (series named after the joints); the blueprint picks joints by
+  position, so the twin must publish them in the order of
+  :data:`~drill_twin.recording.topics.BIT_JOINTS` and ``TOP_JOINTS``;
 - ``sensor_msgs/Imu`` becomes one ``Scalars`` batch [gyroscope x, y, z, accelerometer x, y, z];
 - ``std_msgs/Float64MultiArray`` becomes one ``Scalars`` batch ([0], [1], ...);
 - ``rcl_interfaces/Log`` on /rosout becomes a ``TextLog``;
@@ -38,8 +40,7 @@ TIMELINE = 'message_log_time'
 
 _STATION = re.compile(r'^/drill_twin/vibration/x(\d+)(?:p(\d+))?m/imu$')
 
-# Instances of the JointState scalar batches (joint order of the twin's messages).
-_AXIAL, _ROTATION = 0, 1
+# Which joint of a JointState field to show; the order is topics.BIT_JOINTS / TOP_JOINTS.
 _FIRST, _SECOND = (True, False), (False, True)
 
 # Colours (RGB)
@@ -71,28 +72,30 @@ def stations_from_topics(topic_names: Iterable[str]) -> list[float]:
 
 # -- blueprint ---------------------------------------------------------------------------------
 
+def _field_mapping(type_name: str, selector: str):
+    """Map one field (jq-like ``selector``) of a reflected message onto the plotted scalars."""
+    from rerun.blueprint.encodings import ComponentSourceKind, VisualizerComponentMapping
+
+    return VisualizerComponentMapping(target='Scalars:scalars',
+                                      source_kind=ComponentSourceKind.SourceComponent,
+                                      source_component=message_component(type_name),
+                                      selector=selector)
+
+
 def _field_line(name: str, type_name: str, selector: str, color=None):
     """Make a SeriesLines visualizer plotting one field of a reflected message."""
     import rerun as rr
-    from rerun.blueprint.encodings import ComponentSourceKind, VisualizerComponentMapping
 
-    return rr.SeriesLines(names=name, colors=color).visualizer(mappings=[
-        VisualizerComponentMapping(target='Scalars:scalars',
-                                   source_kind=ComponentSourceKind.SourceComponent,
-                                   source_component=message_component(type_name),
-                                   selector=selector)])
+    return rr.SeriesLines(names=name, colors=color).visualizer(
+        mappings=[_field_mapping(type_name, selector)])
 
 
 def _field_points(name: str, type_name: str, selector: str, color=None):
     """Make a SeriesPoints visualizer marking one field of each message (commands)."""
     import rerun as rr
-    from rerun.blueprint.encodings import ComponentSourceKind, VisualizerComponentMapping
 
-    return rr.SeriesPoints(names=name, colors=color, marker_sizes=4.0).visualizer(mappings=[
-        VisualizerComponentMapping(target='Scalars:scalars',
-                                   source_kind=ComponentSourceKind.SourceComponent,
-                                   source_component=message_component(type_name),
-                                   selector=selector)])
+    return rr.SeriesPoints(names=name, colors=color, marker_sizes=4.0).visualizer(
+        mappings=[_field_mapping(type_name, selector)])
 
 
 def _joint_line(names: Sequence[str], visible: Sequence[bool], color=None, width=None):

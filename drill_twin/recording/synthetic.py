@@ -14,7 +14,7 @@ from typing import Any, Iterable, Iterator, NamedTuple
 from drill_twin import interface as itf
 from drill_twin.recording.mcap_log import McapLog, TWIN_METADATA_NAME
 from drill_twin.recording.message_types import import_message_class
-from drill_twin.recording.topics import twin_topics
+from drill_twin.recording.topics import BIT_JOINTS, TOP_JOINTS, twin_topics
 
 DEFAULT_START_NS = 1_700_000_000_000_000_000
 """2023-11-14T22:13:20Z, an arbitrary epoch for synthetic logs."""
@@ -94,15 +94,15 @@ def synthetic_messages(duration_s: float = 10.0, rate_hz: float = 100.0,
         clock.clock.sec, clock.clock.nanosec = t_ns // 1_000_000_000, t_ns % 1_000_000_000
         yield TimedMessage(itf.CLOCK, clock, t_ns)
         yield TimedMessage(itf.BIT_STATE, _joint_state(
-            t_ns, itf.FRAME_BIT, (itf.BIT_AXIAL, itf.BIT_ROTATION),
-            (depth, angle), (rop, bit_speed), (wob, tob)), t_ns)
+            t_ns, itf.FRAME_BIT, BIT_JOINTS, (depth, angle), (rop, bit_speed), (wob, tob)),
+            t_ns)
         wrench = wrench_cls()
         _stamp(wrench, t_ns, itf.FRAME_BIT)
         wrench.wrench.force.x, wrench.wrench.torque.x = wob, tob
         yield TimedMessage(itf.BIT_WRENCH, wrench, t_ns)
         top_torque = -tob + 2.0e3 * math.sin(phase + 0.5)
         yield TimedMessage(itf.TOP_STATE, _joint_state(
-            t_ns, itf.FRAME_TOP, (itf.TOP_DRIVE, itf.HOOK),
+            t_ns, itf.FRAME_TOP, TOP_JOINTS,
             (top_speed * t, depth - depth0), (top_speed, rop),
             (top_torque, hook_load + wob)), t_ns)
         contacts = array_cls()
@@ -120,8 +120,8 @@ def synthetic_messages(duration_s: float = 10.0, rate_hz: float = 100.0,
         for topic, sign in ((itf.ENSEMBLE_MEAN, 0.0), (itf.ENSEMBLE_LOWER, -1.96),
                             (itf.ENSEMBLE_UPPER, 1.96)):
             yield TimedMessage(topic, _joint_state(
-                t_ns, itf.FRAME_BIT, (itf.BIT_AXIAL, itf.BIT_ROTATION),
-                (depth, angle), (rop + sign * spread[2], bit_speed + sign * spread[1]),
+                t_ns, itf.FRAME_BIT, BIT_JOINTS, (depth, angle),
+                (rop + sign * spread[2], bit_speed + sign * spread[1]),
                 (wob + sign * spread[0], tob)), t_ns)
         for x_m in stations:
             frame = itf.station_frame(x_m)

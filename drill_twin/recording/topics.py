@@ -10,6 +10,12 @@ from typing import Iterable, NamedTuple
 from drill_twin import interface as itf
 from drill_twin.interface import QosSpec
 
+BIT_JOINTS = (itf.BIT_AXIAL, itf.BIT_ROTATION)
+"""Joint order of the bit-state and ensemble JointState messages (the rerun layout and the
+synthetic log rely on it)."""
+TOP_JOINTS = (itf.TOP_DRIVE, itf.HOOK)
+"""Joint order of the top-state JointState messages."""
+
 ROSOUT_QOS = QosSpec(reliability='reliable', durability='transient_local', depth=1000)
 """What rcl's /rosout publisher offers (its 10 s lifespan is not expressible in QosSpec)."""
 
