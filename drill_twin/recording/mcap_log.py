@@ -42,6 +42,7 @@ DEFAULT_FLUSH_INTERVAL_S = 1.0
 """Wall-clock seconds after which an open chunk is written out even if not full."""
 TWIN_METADATA_NAME = 'drill_twin'
 """Name of the metadata record holding the twin's run description (config YAML, seed)."""
+CONFIG_KEY, SEED_KEY = 'config', 'seed'
 
 _UINT64_END = 1 << 64
 _COMPRESSION = {'none': CompressionType.NONE, 'zstd': CompressionType.ZSTD,
@@ -103,7 +104,7 @@ class McapLog:
 
         with McapLog('run.mcap') as log:
             log.add_topic(BIT_STATE, 'sensor_msgs/msg/JointState', STATE_QOS)
-            log.add_metadata(TWIN_METADATA_NAME, {'config': yaml_text, 'seed': '42'})
+            log.add_twin_metadata(yaml_text, seed=42)
             log.write(BIT_STATE, joint_state, log_time_ns=t_ns)
 
     ``write`` is thread safe.  An exception raised by ``write`` (bad message, bad time,
@@ -219,6 +220,17 @@ class McapLog:
         with self._lock:
             self._check_open()
             self._writer.add_metadata(name, record)
+
+    def add_twin_metadata(self, config_yaml: str, seed: int,
+                          extra: Mapping[str, str] | None = None) -> None:
+        """Write the twin's run description as the metadata record ``drill_twin``.
+
+        Keys: ``config`` (the model configuration as YAML text), ``seed`` (decimal integer)
+        and any ``extra`` string pairs.
+        """
+        record = {CONFIG_KEY: config_yaml, SEED_KEY: str(operator.index(seed))}
+        record.update(extra or {})
+        self.add_metadata(TWIN_METADATA_NAME, record)
 
     # -- messages --------------------------------------------------------------------------
 
