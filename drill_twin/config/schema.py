@@ -171,12 +171,15 @@ class Operation:
     """The rig's set point: top-drive speed and hook load."""
 
     top_drive_speed_hz: float
+    top_drive_acceleration_rad_per_s2: float
+    """How fast the top-drive speed follows a new command."""
     hook_load_n: float | None = None
     """None: the hook load of the prestressed state, so that the mean WOB is the static one."""
 
     def __post_init__(self):
         if not math.isfinite(self.top_drive_speed_hz):
             raise ConfigValueError('top_drive_speed_hz', 'must be finite')
+        _positive(self, 'top_drive_acceleration_rad_per_s2')
         if self.hook_load_n is not None and not math.isfinite(self.hook_load_n):
             raise ConfigValueError('hook_load_n', 'must be finite or null')
 

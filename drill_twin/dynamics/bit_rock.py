@@ -1,0 +1,149 @@
+"""The bit-rock interaction law (Eq. 24-26) and its random counterpart (Eq. 42-50).
+
+With the bit velocities x = (ROP, omega) = (du_bit/dt, dtheta_bit/dt), Z = omega / sqrt(omega^2
++ e^2) and s = omega^2 + e^2, the regularised law of Eq. 25 reads
+
+    f_bit = -ROP s / (a2 omega^2) + a3 sqrt(s) / a2 - a1 / a2
+    t_bit = -a4 ROP omega / s - a5 omega / sqrt(s)
+
+(forces the rock applies to the bit; f_bit < 0 is compression). When the law would pull on the
+rock (f_bit >= 0) the bit has lifted off and both vanish (MODEL.md).
+
+Random law. [A_b(x)] = diag(-f/ROP, -t/omega) is positive-definite on its admissible set
+C = {ROP > 0, omega > 0, f < 0, t < 0}; with L_b = sqrt([A_b]) and a germ [G_b],
+F = -L_b^T G_b L_b x (Eq. 50) becomes
+
+    F_1 = G11 f - G12 sqrt(f t omega / ROP),    F_2 = G22 t - G12 sqrt(f t ROP / omega).
+
+Outside C the factorisation does not exist and the mean law is used (docs/MODEL-CHOICES.md).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from drill_twin.config.schema import BitRock
+
+OMEGA_FLOOR_RAD_PER_S = 1e-9
+"""|omega| is kept above this in 1 / omega^2 (the law is singular at omega = 0)."""
+
+
+@dataclass(frozen=True)
+class BitRockLaw:
+    """Eq. 25-26 with the paper's constants (SI units)."""
+
+    a1: float
+    a2: float
+    a3: float
+    a4: float
+    a5: float
+    e: float
+
+    @classmethod
+    def from_config(cls, bit_rock: BitRock) -> 'BitRockLaw':
+        return cls(a1=bit_rock.a1_m_per_s, a2=bit_rock.a2_m_per_n_s, a3=bit_rock.a3_m_per_rad,
+                   a4=bit_rock.a4_n_rad, a5=bit_rock.a5_n_m, e=bit_rock.regularization_rad_per_s)
+
+    def mean(self, rop, omega):
+        """(f_bit, t_bit) of the regularised law, without the lift-off cut (any shape)."""
+        omega_safe = _away_from_zero(omega)
+        s = omega * omega + self.e * self.e
+        root = np.sqrt(s)
+        force = (-rop * (omega_safe * omega_safe + self.e * self.e)
+                 / (self.a2 * omega_safe * omega_safe)
+                 + self.a3 * root / self.a2 - self.a1 / self.a2)
+        torque = -self.a4 * rop * omega / s - self.a5 * omega / root
+        return force, torque
+
+    def forces(self, rop, omega, germ=None):
+        """(f_bit, t_bit, lifted): the law with lift-off, randomised by ``germ`` if given.
+
+        rop, omega: shape (m,); germ: (m, 2, 2) or None. Returns arrays of shape (m,).
+        """
+        force, torque = self.mean(rop, omega)
+        if germ is not None:
+            force, torque = _randomise(force, torque, rop, omega, germ)
+        lifted = np.real(force) >= 0.0
+        zero = np.zeros_like(force)
+        return np.where(lifted, zero, force), np.where(lifted, zero, torque), lifted
+
+    def forces_and_jacobian(self, rop, omega, germ=None):
+        """(f, t, lifted, J) with J[m] = d(f, t)/d(ROP, omega), shape (m, 2, 2) (analytic)."""
+        rop = np.asarray(rop, dtype=float)
+        omega = np.asarray(omega, dtype=float)
+        e2 = self.e * self.e
+        w = _away_from_zero(omega)
+        s = omega * omega + e2
+        root = np.sqrt(s)
+        slope_ratio = (w * w + e2) / (w * w)                    # 1 / Z^2
+        force = -rop * slope_ratio / self.a2 + self.a3 * root / self.a2 - self.a1 / self.a2
+        torque = -self.a4 * rop * omega / s - self.a5 * omega / root
+        jacobian = np.empty(rop.shape + (2, 2))
+        jacobian[..., 0, 0] = -slope_ratio / self.a2
+        jacobian[..., 0, 1] = 2 * rop * e2 / (self.a2 * w ** 3) + self.a3 * omega / (self.a2 * root)
+        jacobian[..., 1, 0] = -self.a4 * omega / s
+        jacobian[..., 1, 1] = (-self.a4 * rop * (e2 - omega * omega) / (s * s)
+                               - self.a5 * e2 / (s * root))
+        if germ is not None:
+            force, torque, jacobian = _randomise_with_jacobian(force, torque, jacobian, rop,
+                                                               omega, germ)
+        lifted = force >= 0.0
+        force = np.where(lifted, 0.0, force)
+        torque = np.where(lifted, 0.0, torque)
+        jacobian = np.where(lifted[..., None, None], 0.0, jacobian)
+        return force, torque, lifted, jacobian
+
+    def steady_rop(self, omega, weight_on_bit_n):
+        """ROP of Eq. 24 (regularised) at a given bit speed and weight on bit."""
+        z = omega / np.sqrt(omega * omega + self.e * self.e)
+        return z * z * (-self.a1 - self.a2 * weight_on_bit_n) + self.a3 * omega * z
+
+    def steady_torque(self, omega, weight_on_bit_n):
+        """Torque on bit of the regularised law at a steady (ROP, omega)."""
+        return self.mean(self.steady_rop(omega, weight_on_bit_n), omega)[1]
+
+
+def _away_from_zero(omega):
+    """omega with its real part kept at least OMEGA_FLOOR in magnitude (imaginary part, used
+    by complex-step differentiation, untouched)."""
+    real = np.real(omega)
+    floored = np.where(real < 0, -OMEGA_FLOOR_RAD_PER_S, OMEGA_FLOOR_RAD_PER_S)
+    return np.where(np.abs(real) < OMEGA_FLOOR_RAD_PER_S, floored + (omega - real), omega)
+
+
+def _randomise_with_jacobian(force, torque, jacobian, rop, omega, germ):
+    """The random law on C and its Jacobian by the chain rule (mean law outside C)."""
+    g11, g12, g22 = germ[:, 0, 0], germ[:, 0, 1], germ[:, 1, 1]
+    admissible = (rop > 0) & (omega > 0) & (force < 0) & (torque < 0)
+    r = np.where(admissible, rop, 1.0)
+    w = np.where(admissible, omega, 1.0)
+    p = np.where(admissible, force * torque, 1.0)
+    dp = jacobian[..., 0, :] * torque[..., None] + force[..., None] * jacobian[..., 1, :]
+    q1, q2 = p * w / r, p * r / w
+    dq1 = dp * (w / r)[..., None] + np.stack([-p * w / r ** 2, p / r], axis=-1)
+    dq2 = dp * (r / w)[..., None] + np.stack([p / w, -p * r / w ** 2], axis=-1)
+    r1, r2 = np.sqrt(q1), np.sqrt(q2)
+    random_force = g11 * force - g12 * r1
+    random_torque = g22 * torque - g12 * r2
+    random_jacobian = np.empty_like(jacobian)
+    random_jacobian[..., 0, :] = (g11[..., None] * jacobian[..., 0, :]
+                                  - g12[..., None] * dq1 / (2 * r1[..., None]))
+    random_jacobian[..., 1, :] = (g22[..., None] * jacobian[..., 1, :]
+                                  - g12[..., None] * dq2 / (2 * r2[..., None]))
+    keep = admissible[..., None, None]
+    return (np.where(admissible, random_force, force), np.where(admissible, random_torque, torque),
+            np.where(keep, random_jacobian, jacobian))
+
+
+def _randomise(force, torque, rop, omega, germ):
+    g11, g12, g22 = germ[:, 0, 0], germ[:, 0, 1], germ[:, 1, 1]
+    admissible = ((np.real(rop) > 0) & (np.real(omega) > 0) & (np.real(force) < 0)
+                  & (np.real(torque) < 0))
+    safe_rop = np.where(admissible, rop, 1.0)
+    safe_omega = np.where(admissible, omega, 1.0)
+    product = np.where(admissible, force * torque, 1.0)
+    random_force = g11 * force - g12 * np.sqrt(product * safe_omega / safe_rop)
+    random_torque = g22 * torque - g12 * np.sqrt(product * safe_rop / safe_omega)
+    return (np.where(admissible, random_force, force),
+            np.where(admissible, random_torque, torque))

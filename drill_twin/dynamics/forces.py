@@ -1,0 +1,124 @@
+"""The non-linear force vector f_NL of Eq. 31, evaluated for a batch of members."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from drill_twin.dynamics.bit_rock import BitRockLaw
+from drill_twin.dynamics.contact import ContactForces, contact_force
+from drill_twin.dynamics.finite_strain import finite_strain_force
+from drill_twin.dynamics.kinetic_coupling import kinetic_coupling_force
+from drill_twin.dynamics.reduced_system import ReducedSystem
+
+
+@dataclass(frozen=True)
+class Kinematics:
+    """What the forces need of a batch of m members (field-wise DOFs, SI units).
+
+    displacement: u from the prestress, (m, n_dofs) (without the driven angle, on which no
+    force depends). Rates and accelerations include the driven rotation:
+    theta_x_rate, theta_x_acceleration: (m, n_nodes); bending_y_rate,
+    bending_y_acceleration: (v, theta_z) rates, (m, 2 n_nodes); bending_z_rate: (w, theta_y),
+    (m, 2 n_nodes); bit_axial_rate: ROP, (m,).
+    """
+
+    displacement: np.ndarray
+    theta_x_rate: np.ndarray
+    theta_x_acceleration: np.ndarray
+    bending_y_rate: np.ndarray
+    bending_y_acceleration: np.ndarray
+    bending_z_rate: np.ndarray
+    bit_axial_rate: np.ndarray
+
+    @classmethod
+    def of(cls, system: ReducedSystem, d, v, a, top_speed: float, top_acceleration: float):
+        """Fields of reduced coordinates d, v, a (m, n) and the top-drive speed/acceleration."""
+        b = system.blocks
+        axial, torsion = b['axial'], b['torsional']
+        y, z = b['bending_y'], b['bending_z']
+        m = d.shape[0]
+        bit_row = axial.shapes[system.bit_node]
+        twist = np.concatenate([v[:, torsion.columns], a[:, torsion.columns]]) @ torsion.shapes_t
+        bend = np.concatenate([v[:, y.columns], a[:, y.columns]]) @ y.shapes_t
+        return cls(
+            displacement=system.physical(d),
+            theta_x_rate=twist[:m] + top_speed,
+            theta_x_acceleration=twist[m:] + top_acceleration,
+            bending_y_rate=bend[:m],
+            bending_y_acceleration=bend[m:],
+            bending_z_rate=v[:, z.columns] @ z.shapes_t,
+            bit_axial_rate=v[:, axial.columns] @ bit_row)
+
+
+@dataclass(frozen=True)
+class ForceEvaluation:
+    """f_NL and what the bit and the wall see.
+
+    full: f_NL on the field-wise DOFs, (m, n_dofs) (N, N m); modal: Phi^T f_NL, (m, n).
+    weight_on_bit_n, torque_on_bit_nm: the bit-rock forces f_bit, t_bit (total, not minus the
+    prestress), (m,); rop_m_per_s, bit_speed_rad_per_s: the bit velocities they were computed
+    at; lifted: bit off the rock, (m,); bit_jacobian: d(f, t)/d(ROP, omega), (m, 2, 2);
+    contact: radial wall forces and flags per node; contact_tangent: d(-F)/d(v, w) per node,
+    (m, n_nodes, 2, 2), or None without contact.
+    """
+
+    full: np.ndarray
+    modal: np.ndarray
+    weight_on_bit_n: np.ndarray
+    torque_on_bit_nm: np.ndarray
+    rop_m_per_s: np.ndarray
+    bit_speed_rad_per_s: np.ndarray
+    lifted: np.ndarray
+    bit_jacobian: np.ndarray
+    contact: ContactForces
+    contact_tangent: np.ndarray | None
+
+
+class NonlinearForces:
+    """f_ke + f_se + f_ip + f_br of Eq. 31 (g(t) is handled by the integrator)."""
+
+    def __init__(self, system: ReducedSystem):
+        config = system.model.config
+        self.system = system
+        self.physics = config.physics
+        self.borehole = config.borehole
+        self.law = BitRockLaw.from_config(config.bit_rock)
+        self.static_weight_on_bit_n = system.model.prestress.static_weight_on_bit_n
+        self.bit_axial_index = system.field(0).start + system.bit_node
+        self.bit_torsion_index = system.field(1).start + system.bit_node
+
+    def evaluate(self, fields: Kinematics, germ=None) -> ForceEvaluation:
+        """f_NL for the fields of a batch; ``germ`` (m, 2, 2) randomises the bit-rock law."""
+        system, physics = self.system, self.physics
+        m = fields.displacement.shape[0]
+        force = np.zeros_like(fields.displacement)
+        if physics.finite_strain:
+            force += finite_strain_force(system, fields.displacement)
+        if physics.kinetic_coupling:
+            force += kinetic_coupling_force(system, fields)
+        tangent = None
+        if physics.contact:
+            wall, contact, tangent = contact_force(
+                system, self.borehole.contact_stiffness_n_per_m,
+                self.borehole.friction_coefficient,
+                self.borehole.friction_regularization_rad_per_s, fields)
+            force += wall
+        else:
+            shape = (m, system.n_nodes)
+            contact = ContactForces(np.zeros(shape), np.zeros(shape, dtype=bool))
+        rop = fields.bit_axial_rate
+        omega = fields.theta_x_rate[:, system.bit_node]
+        if physics.bit_rock:
+            wob, tob, lifted, jacobian = self.law.forces_and_jacobian(rop, omega, germ)
+            force[:, self.bit_axial_index] += wob - self.static_weight_on_bit_n
+            force[:, self.bit_torsion_index] += tob
+        else:
+            wob = np.full(m, self.static_weight_on_bit_n)
+            tob = np.zeros(m)
+            lifted = np.zeros(m, dtype=bool)
+            jacobian = np.zeros((m, 2, 2))
+        return ForceEvaluation(full=force, modal=system.project(force), weight_on_bit_n=wob,
+                               torque_on_bit_nm=tob, rop_m_per_s=rop, bit_speed_rad_per_s=omega,
+                               lifted=lifted, bit_jacobian=jacobian, contact=contact,
+                               contact_tangent=tangent)

@@ -1,0 +1,235 @@
+"""A batch of drill strings stepped in time: state, commands, and what an observer measures.
+
+:class:`Simulator` owns the reduced system, the integrator and the current state of m
+members (all driven by the same top drive and hook). The twin and the offline runs both use
+it: ``step`` advances dt under the current commands, ``observe`` returns the bit, top and
+station quantities of the last step.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from drill_twin.config.schema import DrillStringConfig
+from drill_twin.dynamics.bit_rock import BitRockLaw
+from drill_twin.dynamics.forces import ForceEvaluation, Kinematics, NonlinearForces
+from drill_twin.dynamics.newmark import BatchState, NewmarkIntegrator, StepResult
+from drill_twin.dynamics.reduced_system import ReducedSystem, build_reduced_system
+from drill_twin.modal.reduced_basis import modal_analysis
+
+
+class SimulationDiverged(RuntimeError):
+    """A step produced a non-finite state or did not converge; ``time_s`` says when."""
+
+    def __init__(self, message: str, time_s: float):
+        super().__init__(message)
+        self.time_s = time_s
+
+
+@dataclass(frozen=True)
+class Observation:
+    """What the rig and the sensors see after a step, per member (arrays of shape (m,)).
+
+    Bit: depth_m (measured along the string, down from the top's initial position),
+    rop_m_per_s, angle_rad, speed_rad_per_s, weight_on_bit_n (f_bit, < 0 in compression),
+    torque_on_bit_nm (t_bit), depth_of_cut_m_per_rad (regularised, ROP omega / (omega^2 +
+    e^2)), lifted (bit off the rock). Top: top_torque_nm (the torque the top drive applies,
+    > 0 when driving), top_speed_rad_per_s, top_angle_rad (shared), hook_load_n (shared),
+    hook_position_m (top's axial displacement). Stations (m, n_stations, 3) for the fields
+    (u, v, w): station_displacement_m, station_velocity_m_per_s,
+    station_acceleration_m_per_s2; station_spin_rate_rad_per_s (m, n_stations, 3) for
+    (theta_x', theta_y', theta_z'). Wall: contact_force_n (m, n_nodes) radial force,
+    in_contact (m, n_nodes). Events counted at every step since the start: impacts_so_far
+    (onsets of wall contact, over all nodes) and lift_offs_so_far, (m,).
+    """
+
+    time_s: float
+    depth_m: np.ndarray
+    rop_m_per_s: np.ndarray
+    angle_rad: np.ndarray
+    speed_rad_per_s: np.ndarray
+    weight_on_bit_n: np.ndarray
+    torque_on_bit_nm: np.ndarray
+    depth_of_cut_m_per_rad: np.ndarray
+    lifted: np.ndarray
+    top_torque_nm: np.ndarray
+    top_speed_rad_per_s: float
+    top_angle_rad: float
+    hook_load_n: float
+    hook_position_m: np.ndarray
+    station_displacement_m: np.ndarray
+    station_velocity_m_per_s: np.ndarray
+    station_acceleration_m_per_s2: np.ndarray
+    station_spin_rate_rad_per_s: np.ndarray
+    contact_force_n: np.ndarray
+    in_contact: np.ndarray
+    impacts_so_far: np.ndarray
+    lift_offs_so_far: np.ndarray
+
+
+class TopDrive:
+    """The top-drive speed follows its command at a bounded acceleration (rad/s^2)."""
+
+    def __init__(self, speed_rad_per_s: float, max_acceleration_rad_per_s2: float):
+        self.speed_rad_per_s = float(speed_rad_per_s)
+        self.max_acceleration = float(max_acceleration_rad_per_s2)
+
+    def advance(self, command_rad_per_s: float, dt: float) -> float:
+        change = command_rad_per_s - self.speed_rad_per_s
+        limit = self.max_acceleration * dt
+        self.speed_rad_per_s += float(np.clip(change, -limit, limit))
+        return self.speed_rad_per_s
+
+
+class Simulator:
+    """m members of one drill string, stepped together (see the module docstring).
+
+    Args:
+        config: the model.
+        members: batch size m.
+        germs: (m, 2, 2) random germs of the bit-rock law, or None (mean model).
+        system: a prebuilt reduced system of ``config`` (built if None).
+    """
+
+    def __init__(self, config: DrillStringConfig, members: int = 1,
+                 germs: np.ndarray | None = None, system: ReducedSystem | None = None):
+        if system is None:
+            model, _, basis = modal_analysis(config)
+            system = build_reduced_system(model, basis)
+        self.config = config
+        self.system = system
+        self.members = int(members)
+        if germs is not None and germs.shape != (self.members, 2, 2):
+            raise ValueError(f'germs must have shape ({self.members}, 2, 2)')
+        self.forces = NonlinearForces(system)
+        integration = config.integration
+        self.integrator = NewmarkIntegrator(self.forces, integration.time_step_s,
+                                            integration.tolerance, integration.max_iterations,
+                                            germs)
+        self.law = BitRockLaw.from_config(config.bit_rock)
+        self.dt = integration.time_step_s
+        prestress = system.model.prestress
+        hook = config.operation.hook_load_n
+        self.hook_load_command_n = prestress.hook_load_n if hook is None else hook
+        speed = config.operation.top_drive_speed_rad_per_s
+        self.top_drive = TopDrive(speed, config.operation.top_drive_acceleration_rad_per_s2)
+        self.top_speed_command_rad_per_s = speed
+        self.state = self.integrator.initial_state(*self._initial_coordinates(speed), speed,
+                                                   self.hook_load_command_n)
+        self.last = self._evaluate(self.state)
+        self.impact_count = np.zeros(self.members, dtype=int)
+        self.lift_off_count = np.zeros(self.members, dtype=int)
+
+    # -- commands ------------------------------------------------------------------------
+    def set_top_drive_speed(self, rad_per_s: float) -> None:
+        """The top-drive speed command (rad/s), followed from the next step on."""
+        self.top_speed_command_rad_per_s = float(rad_per_s)
+
+    def set_hook_load(self, newton: float) -> None:
+        """The hook load command (N), applied from the next step on."""
+        self.hook_load_command_n = float(newton)
+
+    # -- stepping ------------------------------------------------------------------------
+    def step(self) -> StepResult:
+        """Advance dt. Raises SimulationDiverged (the state is left as it was)."""
+        speed = self.top_drive.advance(self.top_speed_command_rad_per_s, self.dt)
+        new_state, result = self.integrator.step(self.state, speed, self.hook_load_command_n)
+        if not result.success:
+            self.top_drive.speed_rad_per_s = self.state.top_speed_rad_per_s
+            raise SimulationDiverged(result.message, new_state.time_s)
+        previous = self.last
+        self.state, self.last = new_state, result.forces
+        self.impact_count += np.sum(self.last.contact.in_contact & ~previous.contact.in_contact,
+                                    axis=1)
+        self.lift_off_count += self.last.lifted & ~previous.lifted
+        return result
+
+    @property
+    def time_s(self) -> float:
+        return self.state.time_s
+
+    def observe(self) -> Observation:
+        """Measurements at the current state (bit forces from the last converged iterate)."""
+        system, state, forces = self.system, self.state, self.last
+        top = state.top_speed_rad_per_s
+        u = system.physical(state.q)
+        rate = system.physical(state.q_rate)
+        acceleration = system.physical(state.q_acceleration)
+        theta_x = system.field(1)
+        rate[:, theta_x] += top
+        acceleration[:, theta_x] += state.top_acceleration_rad_per_s2
+        bit, n = system.bit_node, system.n_nodes
+        rows = system.top_torsion_rows
+        top_torque = (acceleration @ rows['mass'] + rate @ rows['damping'] + u @ rows['stiffness']
+                      - forces.full[:, theta_x.start])
+        rop = rate[:, bit]
+        omega = rate[:, n + bit]
+        e = self.law.e
+        fields = np.stack([st.rows[[0, 1, 2]] for st in system.stations]) if system.stations \
+            else np.zeros((0, 3, system.n_dofs))
+        spin_rows = np.stack([st.rows[[3, 4, 5]] for st in system.stations]) if system.stations \
+            else np.zeros((0, 3, system.n_dofs))
+        return Observation(
+            time_s=state.time_s,
+            depth_m=system.model.mesh.total_length_m + u[:, bit],
+            rop_m_per_s=rop,
+            angle_rad=state.top_angle_rad + u[:, n + bit],
+            speed_rad_per_s=omega,
+            weight_on_bit_n=forces.weight_on_bit_n,
+            torque_on_bit_nm=forces.torque_on_bit_nm,
+            depth_of_cut_m_per_rad=rop * omega / (omega * omega + e * e),
+            lifted=forces.lifted,
+            top_torque_nm=top_torque,
+            top_speed_rad_per_s=top,
+            top_angle_rad=state.top_angle_rad,
+            hook_load_n=state.hook_load_n,
+            hook_position_m=u[:, 0],
+            station_displacement_m=np.einsum('sfd,md->msf', fields, u),
+            station_velocity_m_per_s=np.einsum('sfd,md->msf', fields, rate),
+            station_acceleration_m_per_s2=np.einsum('sfd,md->msf', fields, acceleration),
+            station_spin_rate_rad_per_s=np.einsum('sfd,md->msf', spin_rows, rate),
+            contact_force_n=forces.contact.radial_force_n,
+            in_contact=forces.contact.in_contact,
+            impacts_so_far=self.impact_count.copy(),
+            lift_offs_so_far=self.lift_off_count.copy(),
+        )
+
+    # -- initial state -------------------------------------------------------------------
+    def _initial_coordinates(self, top_speed: float):
+        """Rigid axial and rotation speed plus a lateral deflection (Sect. 2.7)."""
+        system, config = self.system, self.config
+        n, m = system.size, self.members
+        q = np.zeros((m, n))
+        q_rate = np.zeros((m, n))
+        axial = system.blocks['axial']
+        if config.physics.bit_rock and np.any(system.basis.rigid):
+            rop = float(self.law.steady_rop(top_speed,
+                                            system.model.prestress.static_weight_on_bit_n))
+            rigid_column = axial.columns.start                 # the rigid mode comes first
+            q_rate[:, rigid_column] = rop / axial.shapes[system.bit_node, 0]
+        amplitude = config.initial_conditions.lateral_deflection_m
+        bending = system.blocks['bending_y']
+        if amplitude > 0 and bending.shapes.shape[1] > 0:
+            nodes = system.n_nodes
+            if config.initial_conditions.lateral_shape == 'first_lateral_mode':
+                shape = np.zeros(bending.shapes.shape[1])
+                shape[0] = 1.0
+            else:                                              # half sine over the string
+                x = system.model.mesh.node_x_m
+                length = x[-1]
+                target = np.zeros(2 * nodes)
+                target[:nodes] = np.sin(math.pi * x / length)
+                target[nodes:] = (math.pi / length) * np.cos(math.pi * x / length)
+                mass = system.model.total_mass[np.ix_(system.permutation[bending.rows],
+                                                      system.permutation[bending.rows])]
+                shape = bending.shapes.T @ (mass @ target)
+            lateral = bending.shapes[:nodes] @ shape
+            q[:, bending.columns] = amplitude / np.max(np.abs(lateral)) * shape
+        return q, q_rate
+
+    def _evaluate(self, state: BatchState) -> ForceEvaluation:
+        fields = Kinematics.of(self.system, state.q, state.q_rate, state.q_acceleration,
+                               state.top_speed_rad_per_s, state.top_acceleration_rad_per_s2)
+        return self.forces.evaluate(fields, self.integrator.germ)

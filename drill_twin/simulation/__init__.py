@@ -1,0 +1,1 @@
+"""Offline runs of the model: recorded histories, summaries and result files."""

@@ -1,0 +1,127 @@
+"""Observations recorded at a fixed interval into arrays (time on the last axis)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from drill_twin.dynamics.simulator import Observation
+
+# Per-member channels: name -> (Observation attribute, unit) (arrays (m, n_t)).
+BIT_CHANNELS = {
+    'bit_depth_m': 'depth_m',
+    'rop_m_per_s': 'rop_m_per_s',
+    'bit_angle_rad': 'angle_rad',
+    'bit_speed_rad_per_s': 'speed_rad_per_s',
+    'weight_on_bit_n': 'weight_on_bit_n',
+    'torque_on_bit_nm': 'torque_on_bit_nm',
+    'depth_of_cut_m_per_rad': 'depth_of_cut_m_per_rad',
+    'bit_lifted_off': 'lifted',
+    'top_torque_nm': 'top_torque_nm',
+    'hook_position_m': 'hook_position_m',
+    'impacts_so_far': 'impacts_so_far',
+    'lift_offs_so_far': 'lift_offs_so_far',
+}
+SHARED_CHANNELS = {'top_speed_rad_per_s': 'top_speed_rad_per_s', 'hook_load_n': 'hook_load_n'}
+STATION_FIELDS = ('axial', 'v', 'w')
+
+
+@dataclass
+class SimulationResult:
+    """A recorded run of m members.
+
+    time_s: (n_t,). channels: name -> (m, n_t) (see BIT_CHANNELS, plus 'contact_nodes' and
+    'max_contact_force_n'); shared: name -> (n_t,); stations_m: (n_s,);
+    station_displacement_m, station_velocity_m_per_s, station_acceleration_m_per_s2:
+    (m, n_s, 3, n_t) for (axial, v, w); station_spin_rate_rad_per_s: (m, n_s, 3, n_t) for
+    (theta_x', theta_y', theta_z'); impact_count, lift_off_count: (m,) counted at every step;
+    time_step_s, steps, iterations, wall_time_s.
+    """
+
+    time_s: np.ndarray
+    channels: dict
+    shared: dict
+    stations_m: np.ndarray
+    station_displacement_m: np.ndarray
+    station_velocity_m_per_s: np.ndarray
+    station_acceleration_m_per_s2: np.ndarray
+    station_spin_rate_rad_per_s: np.ndarray
+    impact_count: np.ndarray
+    lift_off_count: np.ndarray
+    time_step_s: float
+    steps: int = 0
+    iterations: int = 0
+    wall_time_s: float = 0.0
+    metadata: dict = field(default_factory=dict)
+
+    @property
+    def members(self) -> int:
+        return self.channels['rop_m_per_s'].shape[0]
+
+    @property
+    def real_time_factor(self) -> float:
+        """Simulated seconds per wall-clock second."""
+        simulated = self.steps * self.time_step_s
+        return simulated / self.wall_time_s if self.wall_time_s > 0 else float('inf')
+
+    def radial_displacement_m(self) -> np.ndarray:
+        """sqrt(v^2 + w^2) at every station, (m, n_s, n_t)."""
+        d = self.station_displacement_m
+        return np.hypot(d[:, :, 1], d[:, :, 2])
+
+    def window(self, seconds: float) -> np.ndarray:
+        """Boolean mask of the last ``seconds`` of the record."""
+        return self.time_s >= self.time_s[-1] - seconds - 1e-9
+
+
+class History:
+    """Preallocated recorder of :class:`Observation` for ``n_records`` samples."""
+
+    def __init__(self, members: int, n_stations: int, n_records: int, time_step_s: float,
+                 stations_m):
+        self.count = 0
+        self.time_step_s = time_step_s
+        self.time_s = np.zeros(n_records)
+        self.channels = {name: np.zeros((members, n_records)) for name in BIT_CHANNELS}
+        self.channels['bit_lifted_off'] = np.zeros((members, n_records), dtype=bool)
+        self.channels['contact_nodes'] = np.zeros((members, n_records), dtype=int)
+        self.channels['max_contact_force_n'] = np.zeros((members, n_records))
+        self.shared = {name: np.zeros(n_records) for name in SHARED_CHANNELS}
+        shape = (members, n_stations, 3, n_records)
+        self.stations_m = np.asarray(stations_m, dtype=float)
+        self.displacement = np.zeros(shape)
+        self.velocity = np.zeros(shape)
+        self.acceleration = np.zeros(shape)
+        self.spin = np.zeros(shape)
+
+    def record(self, observation: Observation) -> None:
+        k = self.count
+        self.time_s[k] = observation.time_s
+        for name, attribute in BIT_CHANNELS.items():
+            self.channels[name][:, k] = getattr(observation, attribute)
+        self.channels['contact_nodes'][:, k] = np.sum(observation.in_contact, axis=1)
+        self.channels['max_contact_force_n'][:, k] = np.max(observation.contact_force_n, axis=1)
+        for name, attribute in SHARED_CHANNELS.items():
+            self.shared[name][k] = getattr(observation, attribute)
+        self.displacement[..., k] = observation.station_displacement_m
+        self.velocity[..., k] = observation.station_velocity_m_per_s
+        self.acceleration[..., k] = observation.station_acceleration_m_per_s2
+        self.spin[..., k] = observation.station_spin_rate_rad_per_s
+        self.count += 1
+
+    def result(self, impact_count, lift_off_count, steps, iterations, wall_time_s,
+               metadata=None) -> SimulationResult:
+        n = self.count
+        return SimulationResult(
+            time_s=self.time_s[:n].copy(),
+            channels={k: v[:, :n].copy() for k, v in self.channels.items()},
+            shared={k: v[:n].copy() for k, v in self.shared.items()},
+            stations_m=self.stations_m,
+            station_displacement_m=self.displacement[..., :n].copy(),
+            station_velocity_m_per_s=self.velocity[..., :n].copy(),
+            station_acceleration_m_per_s2=self.acceleration[..., :n].copy(),
+            station_spin_rate_rad_per_s=self.spin[..., :n].copy(),
+            impact_count=np.asarray(impact_count).copy(),
+            lift_off_count=np.asarray(lift_off_count).copy(),
+            time_step_s=self.time_step_s, steps=steps, iterations=iterations,
+            wall_time_s=wall_time_s, metadata=dict(metadata or {}))
