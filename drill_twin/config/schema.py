@@ -261,6 +261,9 @@ class InitialConditions:
 
     lateral_deflection_m: float
     lateral_shape: InitialShape
+    steady_twist: bool = False
+    """Start twisted by the steady torque on bit (no start-up transient); the paper starts
+    untwisted."""
 
     def __post_init__(self):
         _non_negative(self, 'lateral_deflection_m')

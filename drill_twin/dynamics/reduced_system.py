@@ -82,8 +82,9 @@ class ReducedSystem:
             for the component-first loop arrays (8, P, m).
         clearance_m, node_outer_radius_m: per node.
         bit_node, top_axial_row: the axial rows of [Phi] at the top, (n,).
-        top_torsion_rows: rows of M + M_f, C + C_f, K + K_f + K_g at the top theta_x DOF
-            on the field-wise DOFs (the top-drive reaction torque).
+        driven_rows: psi^T (M + M_f) and psi^T (C + C_f) on the field-wise DOFs: the torque
+            balance of the whole string gives the top-drive torque (psi^T K = 0), which is
+            far more accurate in a truncated basis than the top node's own row.
         stations: output stations.
     """
 
@@ -120,7 +121,7 @@ class ReducedSystem:
     node_outer_radius_m: np.ndarray
     bit_node: int
     top_axial_row: np.ndarray
-    top_torsion_rows: dict
+    driven_rows: dict
     stations: tuple
 
     @property
@@ -245,10 +246,9 @@ def build_reduced_system(model: FiniteElementModel, basis: ReducedBasis) -> Redu
     theta_y = rotation_rows(sf.FIELD_THETA_Y, 'bending_z')
     theta_z = rotation_rows(sf.FIELD_THETA_Z, 'bending_y')
 
-    top_theta_x = dofs.node_dof(0, dofs.THETA_X)
-    top_rows = {name: np.asarray(matrix[top_theta_x].todense()).ravel()[permutation]
-                for name, matrix in (('mass', model.total_mass), ('damping', model.damping()),
-                                     ('stiffness', model.total_stiffness))}
+    psi = basis.driven_rotation
+    driven_rows = {name: np.asarray(matrix.T @ psi).ravel()[permutation]
+                   for name, matrix in (('mass', model.total_mass), ('damping', model.damping()))}
     stations = []
     for x in model.config.output.stations_m:
         element, xi = mesh.locate(x)
@@ -285,6 +285,6 @@ def build_reduced_system(model: FiniteElementModel, basis: ReducedBasis) -> Redu
         node_outer_radius_m=mesh.node_outer_radius_m.copy(),
         bit_node=mesh.bit_node,
         top_axial_row=basis.shapes[top_axial, order].copy(),
-        top_torsion_rows=top_rows,
+        driven_rows=driven_rows,
         stations=tuple(stations),
     )

@@ -131,6 +131,19 @@ class Simulator:
         """The hook load command (N), applied from the next step on."""
         self.hook_load_command_n = float(newton)
 
+    def reset(self, q: np.ndarray | None = None, q_rate: np.ndarray | None = None) -> None:
+        """Restart from reduced coordinates (m, n) and rates, or from the configured initial
+        state; the commands, the top-drive angle and the event counters are kept."""
+        speed = self.top_drive.speed_rad_per_s
+        default_q, default_rate = self._initial_coordinates(speed)
+        q = default_q if q is None else np.broadcast_to(q, default_q.shape)
+        q_rate = default_rate if q_rate is None else np.broadcast_to(q_rate, default_rate.shape)
+        angle = self.state.top_angle_rad
+        self.state = self.integrator.initial_state(q, q_rate, speed, self.hook_load_command_n,
+                                                   top_angle_rad=angle)
+        self.state.time_s = self.time_s
+        self.last = self._evaluate(self.state)
+
     # -- stepping ------------------------------------------------------------------------
     def step(self) -> StepResult:
         """Advance dt. Raises SimulationDiverged (the state is left as it was)."""
@@ -161,9 +174,10 @@ class Simulator:
         rate[:, theta_x] += top
         acceleration[:, theta_x] += state.top_acceleration_rad_per_s2
         bit, n = system.bit_node, system.n_nodes
-        rows = system.top_torsion_rows
-        top_torque = (acceleration @ rows['mass'] + rate @ rows['damping'] + u @ rows['stiffness']
-                      - forces.full[:, theta_x.start])
+        rows = system.driven_rows
+        # Torque balance of the whole string about x (the rigid rotation costs no strain).
+        top_torque = (acceleration @ rows['mass'] + rate @ rows['damping']
+                      - np.sum(forces.full[:, theta_x], axis=1))
         rop = rate[:, bit]
         omega = rate[:, n + bit]
         e = self.law.e
@@ -209,6 +223,8 @@ class Simulator:
                                             system.model.prestress.static_weight_on_bit_n))
             rigid_column = axial.columns.start                 # the rigid mode comes first
             q_rate[:, rigid_column] = rop / axial.shapes[system.bit_node, 0]
+        if config.initial_conditions.steady_twist and config.physics.bit_rock:
+            q[:, system.blocks['torsional'].columns] = self._steady_twist(top_speed)
         amplitude = config.initial_conditions.lateral_deflection_m
         bending = system.blocks['bending_y']
         if amplitude > 0 and bending.shapes.shape[1] > 0:
@@ -228,6 +244,18 @@ class Simulator:
             lateral = bending.shapes[:nodes] @ shape
             q[:, bending.columns] = amplitude / np.max(np.abs(lateral)) * shape
         return q, q_rate
+
+    def _steady_twist(self, top_speed: float) -> np.ndarray:
+        """Torsional coordinates that carry the steady torque on bit and the drag of the
+        spinning string in static equilibrium (K_r q = Phi^T f on the torsional block)."""
+        system = self.system
+        torsion = system.blocks['torsional']
+        wob = system.model.prestress.static_weight_on_bit_n
+        torque = float(self.law.steady_torque(top_speed, wob))
+        load = (torsion.shapes[system.bit_node] * torque
+                - system.damping_driven[torsion.columns] * top_speed)
+        stiffness = system.stiffness[torsion.columns, torsion.columns]
+        return np.linalg.solve(stiffness, load)
 
     def _evaluate(self, state: BatchState) -> ForceEvaluation:
         fields = Kinematics.of(self.system, state.q, state.q_rate, state.q_acceleration,
