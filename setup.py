@@ -32,7 +32,7 @@ setup(
         # rclpy and the message packages come from ROS on a ROS machine; without ROS
         # they come from PyPI's ROS wheels.
         'ros': ['ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces'],
-        'test': ['pytest>=7', 'pytest-timeout', 'sympy>=1.12', 'wheel'],
+        'test': ['pytest>=7', 'pytest-timeout', 'sympy>=1.12', 'wheel', 'pandas'],
     },
     zip_safe=True,
     maintainer='drill_twin developers',
