@@ -17,13 +17,18 @@ smooth, are iterated as a fixed point, as in the paper. The step ends when every
 
 Acceptance after one iteration. The first Newton update already lands within about 1e-12 of
 the solution (the stiff bit-rock law is linearised exactly, the fixed-point forces are tiny),
-so a second force evaluation would only confirm it. As scipy's implicit solvers do, the step
-keeps the contraction rate rho = |increment_k| / |increment_k-1| measured on steps that ran
-two or more iterations and accepts the first iterate when rho / (1 - rho) |increment_1| (the
+so a second force evaluation would only confirm it. As scipy's implicit solvers do, each
+member keeps the contraction rate rho = |increment_2| / |increment_1| of its last step that
+ran two iterations and accepts its first iterate when rho / (1 - rho) |increment_1| (the
 estimated remaining error) is below the tolerance. It verifies with a second iteration
-whenever the set of nodes touching the wall or the bit's lift-off state changed, and at
-least every VERIFY_EVERY steps to refresh rho. The bit forces of an accepted first iterate
-are carried to the final velocities with their exact Jacobian.
+whenever its set of nodes touching the wall or its bit's lift-off state changed, and at
+least every VERIFY_EVERY steps to refresh rho. Bit forces of a member whose last update
+came after its last evaluation are carried to the final velocities with their exact
+Jacobian.
+
+Members are independent: every decision (convergence, acceptance, verification) is taken
+per member and converged members are frozen while others iterate, so a member's trajectory
+does not depend on the rest of its batch (up to the rounding of batched products).
 
 g(t) = -Phi^T (M psi theta_top'' + C psi theta_top') carries the imposed top rotation, and
 -Phi^T e_top (H - H_S) the change of hook load from its prestressed value.
@@ -152,8 +157,8 @@ class NewmarkIntegrator:
         self.top_axial_row = system.top_axial_row
         self.static_hook_load_n = system.model.prestress.hook_load_n
         self.counters = Counters()
-        self._rate = None                 # contraction rate of the last verified step
-        self._steps_since_verified = 0
+        self._rate = None                 # per member: contraction rate of its last 2-iteration step
+        self._steps_since_verified = None
         self._active = None               # (contact flags, lift-off flags) at the last step
 
     # -- initial state -------------------------------------------------------------------
@@ -201,37 +206,51 @@ class NewmarkIntegrator:
         d_pred = state.q + dt * state.q_rate + (0.5 - BETA) * dt * dt * state.q_acceleration
         v_pred = state.q_rate + (1.0 - GAMMA) * dt * state.q_acceleration
         load = self._external_load(top_speed_rad_per_s, top_acceleration, hook_load_n)
+        members = state.q.shape[0]
         a = state.q_acceleration.copy()
-        error = np.full(a.shape[0], np.inf)
+        error = np.full(members, np.inf)
+        active = np.ones(members, dtype=bool)        # members still iterating
+        carried = np.zeros(members, dtype=bool)      # updated after their last evaluation
+        final = None
+        last_increment = np.zeros_like(a)
         iterations = 0
-        evaluation = None
         for iterations in range(1, self.max_iterations + 1):
             d = d_pred + BETA * dt * dt * a
             v = v_pred + GAMMA * dt * a
             fields = Kinematics.of(self.system, d, v, a, top_speed_rad_per_s, top_acceleration)
             evaluation = self.forces.evaluate(fields, self.germ)
             self.counters.force_evaluations += 1
+            # Frozen members were evaluated at their final state: keep that evaluation.
+            final = evaluation if final is None else _merge(final, evaluation, ~active)
+            carried &= active
             residual = (self._mass_times(a) + v @ self.damping_t + self._stiffness_times(d)
                         - evaluation.modal - load)
             increment = self._solve(residual, evaluation)
+            increment[~active] = 0.0
             a -= increment
+            last_increment = np.where(active[:, None], increment, last_increment)
             speed = np.linalg.norm(v, axis=1)
             previous_error = error
-            error = GAMMA * dt * np.linalg.norm(increment, axis=1) / (speed + VELOCITY_SCALE)
+            new_error = GAMMA * dt * np.linalg.norm(increment, axis=1) / (speed + VELOCITY_SCALE)
+            error = np.where(active, new_error, error)
             if not np.all(np.isfinite(error)):
                 break
-            if iterations == 1 and self._accept_first_iterate(error, evaluation):
-                evaluation = self._carry_bit_forces(evaluation, increment)
-                error = self._rate / (1.0 - self._rate) * error
+            done = active & (error <= self.tolerance)
+            if iterations == 1:
+                accepted = active & self._accept_first_iterate(error, evaluation)
+                error = np.where(accepted, self._rate / (1.0 - self._rate) * error, error)
+                done |= accepted
+            elif iterations == 2:
+                measured = active & (previous_error > 0)
+                rate = np.where(measured, error / np.where(measured, previous_error, 1.0), np.nan)
+                usable = measured & (rate < 1.0)
+                self._rate = np.where(usable, rate, self._rate)
+                self._steps_since_verified = np.where(usable, 0, self._steps_since_verified)
+            carried |= done
+            active &= ~done
+            if not np.any(active):
                 break
-            if iterations >= 2:
-                with np.errstate(divide='ignore', invalid='ignore'):
-                    rate = np.max(np.where(previous_error > 0, error / previous_error, 0.0))
-                if iterations == 2 and rate < 1.0:
-                    self._rate = float(rate)
-                    self._steps_since_verified = 0
-            if np.all(error <= self.tolerance):
-                break
+        evaluation = self._carry_bit_forces(final, last_increment, carried)
         self._steps_since_verified += 1
         self._active = (evaluation.contact.in_contact.copy(), evaluation.lifted.copy())
         d = d_pred + BETA * dt * dt * a
@@ -254,21 +273,30 @@ class NewmarkIntegrator:
         return new_state, StepResult(success, converged, finite, iterations, error, message,
                                      evaluation)
 
-    def _accept_first_iterate(self, error, evaluation) -> bool:
-        if self._rate is None or self._steps_since_verified >= VERIFY_EVERY:
-            return False
-        if self._active is None:
-            return False
-        contact, lifted = self._active
-        if (contact.shape != evaluation.contact.in_contact.shape
-                or np.any(contact != evaluation.contact.in_contact)
-                or np.any(lifted != evaluation.lifted)):
-            return False
-        return bool(np.all(self._rate / (1.0 - self._rate) * error <= self.tolerance))
+    def _accept_first_iterate(self, error, evaluation) -> np.ndarray:
+        """Members whose first iterate is accepted on their own contraction rate (m,)."""
+        members = error.shape[0]
+        if self._rate is None or self._rate.shape != (members,):
+            self._rate = np.full(members, np.nan)
+            self._steps_since_verified = np.zeros(members, dtype=int)
+            return np.zeros(members, dtype=bool)
+        accept = np.isfinite(self._rate) & (self._steps_since_verified < VERIFY_EVERY)
+        if self._active is not None:
+            contact, lifted = self._active
+            accept &= np.all(contact == evaluation.contact.in_contact, axis=1)
+            accept &= lifted == evaluation.lifted
+        with np.errstate(invalid='ignore'):
+            accept &= self._rate / (1.0 - self._rate) * error <= self.tolerance
+        return accept
 
-    def _carry_bit_forces(self, evaluation: ForceEvaluation, increment) -> ForceEvaluation:
-        """Bit forces at the accepted velocities: f + J dx, dx = -gamma dt B^T increment."""
+    def _carry_bit_forces(self, evaluation: ForceEvaluation, increment,
+                          members) -> ForceEvaluation:
+        """Bit forces of ``members`` carried to their accepted velocities: f + J dx, with
+        dx = -gamma dt B^T increment (their last update came after their last evaluation)."""
+        if not np.any(members):
+            return evaluation
         change = -GAMMA * self.time_step_s * increment @ self.bit_rows_t       # (m, 2)
+        change[~members] = 0.0
         corrected = np.einsum('mij,mj->mi', evaluation.bit_jacobian, change)
         lifted = evaluation.lifted
         return replace(evaluation,
@@ -314,3 +342,38 @@ class NewmarkIntegrator:
         gram = self.local_gram[np.ix_(index, index)]
         w = np.linalg.solve(np.eye(rank) + d @ gram, d @ z)
         return base - self.local_response[:, index] @ w
+
+
+def _merge(kept: ForceEvaluation, new: ForceEvaluation, members: np.ndarray) -> ForceEvaluation:
+    """``new`` for ``members`` (their final state), ``kept`` for the others."""
+    if not np.any(members):
+        return kept
+    if np.all(members):
+        return new
+
+    def pick(a, b):
+        if a is None or b is None:
+            return b if a is None else a
+        mask = members.reshape((-1,) + (1,) * (np.ndim(a) - 1))
+        return np.where(mask, b, a)
+
+    from drill_twin.dynamics.contact import ContactForces
+    contact = ContactForces(pick(kept.contact.radial_force_n, new.contact.radial_force_n),
+                            pick(kept.contact.in_contact, new.contact.in_contact))
+    tangent = (None if kept.contact_tangent is None and new.contact_tangent is None else
+               pick(_tangent_or_zero(kept), _tangent_or_zero(new)))
+    return ForceEvaluation(
+        full=pick(kept.full, new.full), modal=pick(kept.modal, new.modal),
+        weight_on_bit_n=pick(kept.weight_on_bit_n, new.weight_on_bit_n),
+        torque_on_bit_nm=pick(kept.torque_on_bit_nm, new.torque_on_bit_nm),
+        rop_m_per_s=pick(kept.rop_m_per_s, new.rop_m_per_s),
+        bit_speed_rad_per_s=pick(kept.bit_speed_rad_per_s, new.bit_speed_rad_per_s),
+        lifted=pick(kept.lifted, new.lifted), bit_jacobian=pick(kept.bit_jacobian,
+                                                                new.bit_jacobian),
+        contact=contact, contact_tangent=tangent)
+
+
+def _tangent_or_zero(evaluation: ForceEvaluation) -> np.ndarray:
+    if evaluation.contact_tangent is not None:
+        return evaluation.contact_tangent
+    return np.zeros(evaluation.contact.in_contact.shape + (2, 2))
