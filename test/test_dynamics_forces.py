@@ -183,6 +183,15 @@ def test_matrix_form_of_eq41(law):
     assert a11 > 0 and a22 > 0
 
 
+def test_random_law_is_continuous_at_zero_rop(law):
+    """The random deviation fades into the mean law as ROP -> 0+ (no jump at the edge of C)."""
+    germ = np.array([[[0.93, 0.08], [0.08, 1.08]]])
+    for rop in (1e-7, 1e-8):
+        random, _, _ = law.forces(np.array([rop]), np.array([5.2]), germ)
+        mean, _ = law.mean(rop, 5.2)
+        assert abs(random[0] - mean) < 1e-2 * abs(mean)
+
+
 def test_lift_off_removes_the_bit_forces(law):
     force, torque, lifted, jacobian = law.forces_and_jacobian(np.array([-1e-2, 2e-3]),
                                                               np.array([5.0, 5.0]))
@@ -191,11 +200,12 @@ def test_lift_off_removes_the_bit_forces(law):
     assert force[1] < 0
 
 
-@pytest.mark.parametrize('germ', [None, np.array([[[1.05, 0.08], [0.08, 0.93]]] * 3)])
+@pytest.mark.parametrize('germ', [None, np.array([[[1.05, 0.08], [0.08, 0.93]]] * 4)])
 def test_bit_rock_jacobian(law, germ):
-    """Analytic Jacobian against complex-step derivatives of the (random) law."""
-    rop = np.array([2.6e-3, 1.1e-3, 3.3e-3])
-    omega = np.array([5.2, 0.7, 9.0])
+    """Analytic Jacobian against complex-step derivatives of the (random) law, also inside
+    the blend near ROP = 0."""
+    rop = np.array([2.6e-3, 1.1e-3, 3.3e-3, 8e-5])
+    omega = np.array([5.2, 0.7, 9.0, 4.0])
     _, _, _, jacobian = law.forces_and_jacobian(rop, omega, germ)
     for column, (dr, dw) in enumerate(((1j * STEP, 0.0), (0.0, 1j * STEP))):
         f, t, _ = law.forces(rop + dr, omega + dw, germ)
@@ -211,8 +221,12 @@ def test_random_law_is_the_quadratic_form_of_eq50(law):
     germ = 0.5 * (germ + germ.transpose(0, 2, 1))
     f, t = law.mean(rop, omega)
     lower = np.diag([np.sqrt(-f[0] / rop[0]), np.sqrt(-t[0] / omega[0])])
-    expected = -lower.T @ germ[0] @ lower @ np.array([rop[0], omega[0]])
+    eq50 = -lower.T @ germ[0] @ lower @ np.array([rop[0], omega[0]])
+    # Blended into the mean law near ROP = 0 with w = ROP^2 / (ROP^2 + r^2) (r = 1e-4 m/s).
+    weight = rop[0] ** 2 / (rop[0] ** 2 + law.rop_scale ** 2)
+    expected = np.array([f[0], t[0]]) + weight * (eq50 - np.array([f[0], t[0]]))
     force, torque, _ = law.forces(rop, omega, germ)
     np.testing.assert_allclose([force[0], torque[0]], expected, rtol=1e-12)
+    assert weight > 0.998
     mean_force, mean_torque, _ = law.forces(rop, omega, np.eye(2)[None])
     np.testing.assert_allclose([mean_force[0], mean_torque[0]], [f[0], t[0]], rtol=1e-14)

@@ -147,9 +147,12 @@ class BitRock:
     a5_n_m: float
     regularization_rad_per_s: float
     static_weight_on_bit_n: float
+    random_law_rop_scale_m_per_s: float = 1e-4
+    """Near ROP = 0 the random law is blended into the mean law over this ROP scale."""
 
     def __post_init__(self):
-        _positive(self, 'a2_m_per_n_s', 'regularization_rad_per_s')
+        _positive(self, 'a2_m_per_n_s', 'regularization_rad_per_s',
+                  'random_law_rop_scale_m_per_s')
         _non_negative(self, 'a1_m_per_s', 'a3_m_per_rad', 'a4_n_rad', 'a5_n_m')
         if not math.isfinite(self.static_weight_on_bit_n):
             raise ConfigValueError('static_weight_on_bit_n', 'must be finite')

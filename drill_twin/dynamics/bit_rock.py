@@ -15,7 +15,14 @@ F = -L_b^T G_b L_b x (Eq. 50) becomes
 
     F_1 = G11 f - G12 sqrt(f t omega / ROP),    F_2 = G22 t - G12 sqrt(f t ROP / omega).
 
-Outside C the factorisation does not exist and the mean law is used (docs/MODEL-CHOICES.md).
+Outside C the factorisation does not exist and the mean law is used. Inside C, the term
+G12 sqrt(f t omega / ROP) is about G12 x 1 MN at the operating point and grows without bound
+as ROP -> 0+, while the mean law holds about -47 kN there: the random force would jump
+from -infinity to the mean law at ROP = 0, and for some germs at delta = 0.1 it cannot balance
+the weight at any ROP > 0. The random deviation is therefore blended into the mean law near
+that boundary, F = f + w (F_random - f) with w = ROP^2 / (ROP^2 + r^2), r =
+``random_law_rop_scale_m_per_s`` (default 1e-4 m/s: at the nominal 2.6 mm/s, w = 0.9985).
+The law is then continuous, and smooth but for the lift-off cut (docs/MODEL-CHOICES.md).
 """
 from __future__ import annotations
 
@@ -39,11 +46,14 @@ class BitRockLaw:
     a4: float
     a5: float
     e: float
+    rop_scale: float = 1e-4
+    """r of the blend of the random law into the mean law near ROP = 0 (m/s)."""
 
     @classmethod
     def from_config(cls, bit_rock: BitRock) -> 'BitRockLaw':
         return cls(a1=bit_rock.a1_m_per_s, a2=bit_rock.a2_m_per_n_s, a3=bit_rock.a3_m_per_rad,
-                   a4=bit_rock.a4_n_rad, a5=bit_rock.a5_n_m, e=bit_rock.regularization_rad_per_s)
+                   a4=bit_rock.a4_n_rad, a5=bit_rock.a5_n_m, e=bit_rock.regularization_rad_per_s,
+                   rop_scale=bit_rock.random_law_rop_scale_m_per_s)
 
     def mean(self, rop, omega):
         """(f_bit, t_bit) of the regularised law, without the lift-off cut (any shape)."""
@@ -63,7 +73,7 @@ class BitRockLaw:
         """
         force, torque = self.mean(rop, omega)
         if germ is not None:
-            force, torque = _randomise(force, torque, rop, omega, germ)
+            force, torque = _randomise(force, torque, rop, omega, germ, self.rop_scale)
         lifted = np.real(force) >= 0.0
         zero = np.zeros_like(force)
         return np.where(lifted, zero, force), np.where(lifted, zero, torque), lifted
@@ -87,7 +97,7 @@ class BitRockLaw:
                                - self.a5 * e2 / (s * root))
         if germ is not None:
             force, torque, jacobian = _randomise_with_jacobian(force, torque, jacobian, rop,
-                                                               omega, germ)
+                                                               omega, germ, self.rop_scale)
         lifted = force >= 0.0
         force = np.where(lifted, 0.0, force)
         torque = np.where(lifted, 0.0, torque)
@@ -112,8 +122,15 @@ def _away_from_zero(omega):
     return np.where(np.abs(real) < OMEGA_FLOOR_RAD_PER_S, floored + (omega - real), omega)
 
 
-def _randomise_with_jacobian(force, torque, jacobian, rop, omega, germ):
-    """The random law on C and its Jacobian by the chain rule (mean law outside C)."""
+def _blend(rop, scale):
+    """w = ROP^2 / (ROP^2 + r^2) and dw/dROP."""
+    square = rop * rop
+    denominator = square + scale * scale
+    return square / denominator, 2 * rop * scale * scale / (denominator * denominator)
+
+
+def _randomise_with_jacobian(force, torque, jacobian, rop, omega, germ, scale):
+    """The (blended) random law on C and its Jacobian by the chain rule (mean law outside C)."""
     g11, g12, g22 = germ[:, 0, 0], germ[:, 0, 1], germ[:, 1, 1]
     admissible = (rop > 0) & (omega > 0) & (force < 0) & (torque < 0)
     r = np.where(admissible, rop, 1.0)
@@ -124,19 +141,23 @@ def _randomise_with_jacobian(force, torque, jacobian, rop, omega, germ):
     dq1 = dp * (w / r)[..., None] + np.stack([-p * w / r ** 2, p / r], axis=-1)
     dq2 = dp * (r / w)[..., None] + np.stack([p / w, -p * r / w ** 2], axis=-1)
     r1, r2 = np.sqrt(q1), np.sqrt(q2)
-    random_force = g11 * force - g12 * r1
-    random_torque = g22 * torque - g12 * r2
-    random_jacobian = np.empty_like(jacobian)
-    random_jacobian[..., 0, :] = (g11[..., None] * jacobian[..., 0, :]
-                                  - g12[..., None] * dq1 / (2 * r1[..., None]))
-    random_jacobian[..., 1, :] = (g22[..., None] * jacobian[..., 1, :]
-                                  - g12[..., None] * dq2 / (2 * r2[..., None]))
+    deviation = np.stack([(g11 - 1) * force - g12 * r1, (g22 - 1) * torque - g12 * r2], axis=-1)
+    d_deviation = np.empty_like(jacobian)
+    d_deviation[..., 0, :] = ((g11 - 1)[..., None] * jacobian[..., 0, :]
+                              - g12[..., None] * dq1 / (2 * r1[..., None]))
+    d_deviation[..., 1, :] = ((g22 - 1)[..., None] * jacobian[..., 1, :]
+                              - g12[..., None] * dq2 / (2 * r2[..., None]))
+    weight, d_weight = _blend(r, scale)
+    random_jacobian = jacobian + weight[..., None, None] * d_deviation
+    random_jacobian[..., :, 0] += deviation * d_weight[..., None]
     keep = admissible[..., None, None]
-    return (np.where(admissible, random_force, force), np.where(admissible, random_torque, torque),
+    return (np.where(admissible, force + weight * deviation[..., 0], force),
+            np.where(admissible, torque + weight * deviation[..., 1], torque),
             np.where(keep, random_jacobian, jacobian))
 
 
-def _randomise(force, torque, rop, omega, germ):
+def _randomise(force, torque, rop, omega, germ, scale):
+    """The (blended) random law written directly (works for complex arguments)."""
     g11, g12, g22 = germ[:, 0, 0], germ[:, 0, 1], germ[:, 1, 1]
     admissible = ((np.real(rop) > 0) & (np.real(omega) > 0) & (np.real(force) < 0)
                   & (np.real(torque) < 0))
@@ -145,5 +166,6 @@ def _randomise(force, torque, rop, omega, germ):
     product = np.where(admissible, force * torque, 1.0)
     random_force = g11 * force - g12 * np.sqrt(product * safe_omega / safe_rop)
     random_torque = g22 * torque - g12 * np.sqrt(product * safe_rop / safe_omega)
-    return (np.where(admissible, random_force, force),
-            np.where(admissible, random_torque, torque))
+    weight = safe_rop * safe_rop / (safe_rop * safe_rop + scale * scale)
+    return (np.where(admissible, force + weight * (random_force - force), force),
+            np.where(admissible, torque + weight * (random_torque - torque), torque))

@@ -3,32 +3,38 @@
 Each step solves, for the accelerations a = q''(t + dt) of every member,
 
     R(a) = [M_r] a + [C_r] v + [K_r] d - Phi^T f_NL(d, v, a) - g(t + dt) = 0,
-    d = d* + beta dt^2 a,   v = v* + gamma dt a   (beta = 1/4, gamma = 1/2),
+    d = d* + beta dt^2 a,   v = v* + gamma dt a   (beta = 1/4, gamma = 1/2).
 
-by a Newton iteration whose matrix is S0 + U D U^T: S0 = M_r + gamma dt C_r + beta dt^2 K_r is
-constant and inverted once; U holds the rows of Phi at the bit's axial and torsional DOFs and
-at the lateral DOFs of the nodes touching the wall, and D the tangents of the stiff local
-laws there: -gamma dt J with J the 2x2 Jacobian of the bit-rock law (its axial damping
-1/(a2 Z^2) grows without bound as the bit stops turning) and beta dt^2 K_c with K_c the 2x2
-contact stiffness of each touching node (k_ip = 1e8 N/m). The Woodbury identity applies it
-with one small solve per member. The finite-strain and kinetic-coupling forces, small and
-smooth, are iterated as a fixed point, as in the paper. The step ends when every member's velocity increment is below
-``tolerance`` relative to its velocity (or ``max_iterations`` is reached: failure).
+Iteration. At an iterate a_k the finite-strain and kinetic-coupling forces are frozen (a fixed
+point, as in the paper: they are small and smooth), the wall contact is linearised (Newton:
+its 2x2 stiffness k_ip [n n^T + (p/r)(I - n n^T)] at every touching node) and the bit-rock law
+is solved exactly. With S = S0 + U_c D_c U_c^T (S0 = M_r + gamma dt C_r + beta dt^2 K_r,
+inverted once; the contact terms added per member by the Woodbury identity) the accelerations
+are linear in the bit force F:
 
-Acceptance after one iteration. The first Newton update already lands within about 1e-12 of
-the solution (the stiff bit-rock law is linearised exactly, the fixed-point forces are tiny),
-so a second force evaluation would only confirm it. As scipy's implicit solvers do, each
-member keeps the contraction rate rho = |increment_2| / |increment_1| of its last step that
-ran two iterations and accepts its first iterate when rho / (1 - rho) |increment_1| (the
-estimated remaining error) is below the tolerance. It verifies with a second iteration
-whenever its set of nodes touching the wall or its bit's lift-off state changed, and at
-least every VERIFY_EVERY steps to refresh rho. Bit forces of a member whose last update
-came after its last evaluation are carried to the final velocities with their exact
-Jacobian.
+    a = a_k - S^-1 R_nobit(a_k) + S^-1 B (F(x) - F_c),
 
-Members are independent: every decision (convergence, acceptance, verification) is taken
-per member and converged members are frozen while others iterate, so a member's trajectory
-does not depend on the rest of its batch (up to the rounding of batched products).
+B holding the rows of Phi at the bit's axial and torsional DOFs and F_c = (f_c, 0) the
+prestress reaction. So the bit velocities x = (ROP, omega) obey the 2x2 equation
+
+    x = x_lin + gamma dt H (F(x) - F_c),   H = B^T S^-1 B,
+
+solved per member by Newton with backtracking on its residual (the law is stiff, kinked at
+lift-off, and flat or steep in places for random germs). The accelerations then follow. The
+step ends when every member's velocity increment is below ``tolerance`` relative to its
+velocity (failure after ``max_iterations``).
+
+Acceptance after one iteration. With the bit solved exactly the first update already lands
+within about 1e-12 of the solution, so a second force evaluation would only confirm it. As
+scipy's implicit solvers do, each member keeps the contraction rate rho = |increment_2| /
+|increment_1| of its last step that ran two iterations and accepts its first iterate when
+rho / (1 - rho) |increment_1| (the estimated remaining error) is below the tolerance. It
+verifies with a second iteration whenever its set of nodes touching the wall or its bit's
+lift-off state changed, and at least every VERIFY_EVERY steps to refresh rho.
+
+Members are independent: every decision (convergence, acceptance, verification) is taken per
+member and converged members are frozen while others iterate, so a member's trajectory does
+not depend on the rest of its batch (up to the rounding of batched products).
 
 g(t) = -Phi^T (M psi theta_top'' + C psi theta_top') carries the imposed top rotation, and
 -Phi^T e_top (H - H_S) the change of hook load from its prestressed value.
@@ -40,6 +46,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import scipy.linalg as la
 
+from drill_twin.dynamics.contact import ContactForces
 from drill_twin.dynamics.forces import ForceEvaluation, Kinematics, NonlinearForces
 
 BETA = 0.25
@@ -48,6 +55,12 @@ VELOCITY_SCALE = 1e-9
 """Added to the velocity norm in the convergence test (modal units, sqrt(kg) m/s)."""
 VERIFY_EVERY = 25
 """A step runs at least two iterations this often, to measure the contraction rate."""
+BIT_ITERATIONS = 60
+"""Cap of the Newton iterations on the bit's 2x2 equation (a few suffice)."""
+BIT_SCALE = np.array([1e-3, 1.0])
+"""Scales of ROP (m/s) and bit speed (rad/s) in the bit equation's norms."""
+BIT_TOLERANCE = 1e-12
+"""Scaled step size at which the bit equation counts as solved."""
 
 
 @dataclass
@@ -80,7 +93,8 @@ class StepResult:
     """Outcome of one step: success unless a member diverged or did not converge.
 
     converged, finite: per member (m,); iterations: used; error: final relative velocity
-    increment per member; message: why it failed ('' on success).
+    increment per member; message: why it failed ('' on success); forces: the forces of the
+    final state (the bit's exactly, the others at each member's last evaluation).
     """
 
     success: bool
@@ -99,12 +113,26 @@ class Counters:
     steps: int = 0
     iterations: int = 0
     force_evaluations: int = 0
+    bit_law_evaluations: int = 0
     failed_steps: int = 0
     history: list = field(default_factory=list, repr=False)
 
 
+@dataclass(frozen=True)
+class _BitSolution:
+    """The bit's velocities and forces at a solution of its 2x2 equation, per member."""
+
+    rop: np.ndarray
+    omega: np.ndarray
+    force: np.ndarray
+    torque: np.ndarray
+    lifted: np.ndarray
+    jacobian: np.ndarray
+    solved: np.ndarray
+
+
 class NewmarkIntegrator:
-    """Average-acceleration Newmark with a cached S0^-1 and Newton on the bit-rock law.
+    """Average-acceleration Newmark with a cached S0^-1 and an exact bit solve.
 
     Args:
         forces: the non-linear forces of a reduced system.
@@ -151,9 +179,11 @@ class NewmarkIntegrator:
         self.local_directions = local
         self.local_response = la.solve(effective, local)                  # S0^-1 U
         self.local_gram = local.T @ self.local_response                   # U^T S0^-1 U
-        self.bit_rows_t = np.ascontiguousarray(local[:, :2])
-        self.bit_response_t = np.ascontiguousarray(self.local_response[:, :2].T)
-        self.bit_flexibility = self.local_gram[:2, :2]
+        self.bit_rows_t = np.ascontiguousarray(local[:, :2])               # B, (n, 2)
+        self.bit_rows = np.ascontiguousarray(local[:, :2].T)               # B^T, (2, n)
+        self.bit_response = np.ascontiguousarray(self.local_response[:, :2])   # S0^-1 B
+        self.bit_flexibility = self.local_gram[:2, :2]                     # B^T S0^-1 B
+        self.static_bit_force = np.array([forces.static_weight_on_bit_n, 0.0])
         self.top_axial_row = system.top_axial_row
         self.static_hook_load_n = system.model.prestress.hook_load_n
         self.counters = Counters()
@@ -210,9 +240,8 @@ class NewmarkIntegrator:
         a = state.q_acceleration.copy()
         error = np.full(members, np.inf)
         active = np.ones(members, dtype=bool)        # members still iterating
-        carried = np.zeros(members, dtype=bool)      # updated after their last evaluation
-        final = None
-        last_increment = np.zeros_like(a)
+        bit_ok = np.ones(members, dtype=bool)
+        final = bit = None
         iterations = 0
         for iterations in range(1, self.max_iterations + 1):
             d = d_pred + BETA * dt * dt * a
@@ -222,19 +251,21 @@ class NewmarkIntegrator:
             self.counters.force_evaluations += 1
             # Frozen members were evaluated at their final state: keep that evaluation.
             final = evaluation if final is None else _merge(final, evaluation, ~active)
-            carried &= active
             residual = (self._mass_times(a) + v @ self.damping_t + self._stiffness_times(d)
                         - evaluation.modal - load)
-            increment = self._solve(residual, evaluation)
-            increment[~active] = 0.0
-            a -= increment
-            last_increment = np.where(active[:, None], increment, last_increment)
+            updated, solution = self._update(a, residual, evaluation)
+            if np.all(active):
+                increment, a, bit = a - updated, updated, solution
+            else:
+                increment = np.where(active[:, None], a - updated, 0.0)
+                a = np.where(active[:, None], updated, a)
+                bit = _merge_bit(bit, solution, active)
+            bit_ok &= ~active | solution.solved
             speed = np.linalg.norm(v, axis=1)
             previous_error = error
             new_error = GAMMA * dt * np.linalg.norm(increment, axis=1) / (speed + VELOCITY_SCALE)
             error = np.where(active, new_error, error)
-            if not np.all(np.isfinite(error)):
-                break
+            active &= np.isfinite(error) & bit_ok       # a failing member stops alone
             done = active & (error <= self.tolerance)
             if iterations == 1:
                 accepted = active & self._accept_first_iterate(error, evaluation)
@@ -246,22 +277,24 @@ class NewmarkIntegrator:
                 usable = measured & (rate < 1.0)
                 self._rate = np.where(usable, rate, self._rate)
                 self._steps_since_verified = np.where(usable, 0, self._steps_since_verified)
-            carried |= done
             active &= ~done
             if not np.any(active):
                 break
-        evaluation = self._carry_bit_forces(final, last_increment, carried)
+        evaluation = self._with_bit(final, bit)
         self._steps_since_verified += 1
         self._active = (evaluation.contact.in_contact.copy(), evaluation.lifted.copy())
         d = d_pred + BETA * dt * dt * a
         v = v_pred + GAMMA * dt * a
         finite = np.all(np.isfinite(d), axis=1) & np.all(np.isfinite(v), axis=1)
-        converged = finite & (error <= self.tolerance)
+        converged = finite & bit_ok & (error <= self.tolerance)
         success = bool(np.all(converged))
         time = state.time_s + dt
         message = ''
         if not np.all(finite):
             message = f'non-finite state at t = {time:.6g} s (members {np.flatnonzero(~finite)})'
+        elif not np.all(bit_ok):
+            message = (f'the bit-rock equation has no solution at t = {time:.6g} s '
+                       f'(members {np.flatnonzero(~bit_ok)})')
         elif not success:
             message = (f'no convergence in {self.max_iterations} iterations at t = {time:.6g} s '
                        f'(members {np.flatnonzero(~converged)}, error {np.max(error):.3g})')
@@ -289,59 +322,146 @@ class NewmarkIntegrator:
             accept &= self._rate / (1.0 - self._rate) * error <= self.tolerance
         return accept
 
-    def _carry_bit_forces(self, evaluation: ForceEvaluation, increment,
-                          members) -> ForceEvaluation:
-        """Bit forces of ``members`` carried to their accepted velocities: f + J dx, with
-        dx = -gamma dt B^T increment (their last update came after their last evaluation)."""
-        if not np.any(members):
-            return evaluation
-        change = -GAMMA * self.time_step_s * increment @ self.bit_rows_t       # (m, 2)
-        change[~members] = 0.0
-        corrected = np.einsum('mij,mj->mi', evaluation.bit_jacobian, change)
-        lifted = evaluation.lifted
-        return replace(evaluation,
-                       weight_on_bit_n=np.where(lifted, 0.0,
-                                                evaluation.weight_on_bit_n + corrected[:, 0]),
-                       torque_on_bit_nm=np.where(lifted, 0.0,
-                                                 evaluation.torque_on_bit_nm + corrected[:, 1]),
-                       rop_m_per_s=evaluation.rop_m_per_s + change[:, 0],
-                       bit_speed_rad_per_s=evaluation.bit_speed_rad_per_s + change[:, 1])
-
-    def _solve(self, residual: np.ndarray, evaluation: ForceEvaluation) -> np.ndarray:
-        """(S0 + U D U^T)^-1 residual for every member (Woodbury; see the module docstring)."""
+    # -- the update of one iteration -----------------------------------------------------
+    def _update(self, a, residual, evaluation: ForceEvaluation):
+        """New accelerations (m, n) with the bit solved exactly (module docstring)."""
         gdt = GAMMA * self.time_step_s
-        jacobian = evaluation.bit_jacobian
-        base = residual @ self.effective_inverse_t                     # S0^-1 r, (m, n)
-        z = base @ self.bit_rows_t                                     # B^T S0^-1 r, (m, 2)
-        jz = jacobian @ z[..., None]                                   # (m, 2, 1)
-        small = np.eye(2) - gdt * (jacobian @ self.bit_flexibility)    # (m, 2, 2)
-        determinant = small[:, 0, 0] * small[:, 1, 1] - small[:, 0, 1] * small[:, 1, 0]
-        w = np.empty_like(z)
-        w[:, 0] = (small[:, 1, 1] * jz[:, 0, 0] - small[:, 0, 1] * jz[:, 1, 0]) / determinant
-        w[:, 1] = (small[:, 0, 0] * jz[:, 1, 0] - small[:, 1, 0] * jz[:, 0, 0]) / determinant
-        result = base + gdt * w @ self.bit_response_t
-        touching = evaluation.contact.in_contact
-        for member in np.flatnonzero(np.any(touching, axis=1)):
-            result[member] = self._solve_with_contact(base[member], jacobian[member],
-                                                      evaluation.contact_tangent[member],
-                                                      np.flatnonzero(touching[member]))
-        return result
+        applied = np.stack([evaluation.weight_on_bit_n, evaluation.torque_on_bit_nm], axis=1)
+        applied -= self.static_bit_force
+        residual_without_bit = residual + applied @ self.bit_rows
+        y, response = self._inverse_with_contact(residual_without_bit, evaluation)
+        if response is None:                                  # no contact: constant S0
+            flexibility = np.broadcast_to(self.bit_flexibility, (a.shape[0], 2, 2))
+        else:
+            flexibility = np.einsum('in,mnj->mij', self.bit_rows, response)   # B^T S^-1 B
+        start = np.stack([evaluation.rop_m_per_s, evaluation.bit_speed_rad_per_s], axis=1)
+        linear = start - gdt * (y @ self.bit_rows_t)
+        solution = self._solve_bit(linear, flexibility, start, evaluation)
+        force = np.stack([solution.force, solution.torque], axis=1) - self.static_bit_force
+        if response is None:
+            return a - y + force @ self.bit_response.T, solution
+        return a - y + np.einsum('mnj,mj->mn', response, force), solution
 
-    def _solve_with_contact(self, base, jacobian, tangent, nodes):
-        """One member: bit and touching nodes in U, D = blockdiag(-gamma dt J, beta dt^2 K_c)."""
-        dt = self.time_step_s
+    def _inverse_with_contact(self, vectors, evaluation: ForceEvaluation):
+        """S^-1 r and S^-1 B per member, S = S0 + contact tangents of the touching nodes
+        (S^-1 B is None when no member touches the wall: then it is the constant S0^-1 B)."""
+        members = vectors.shape[0]
+        y = vectors @ self.effective_inverse_t
+        touching = evaluation.contact.in_contact
+        if evaluation.contact_tangent is None or not touching.any():
+            return y, None                                    # S = S0 for every member
+        contact_members = np.flatnonzero(np.any(touching, axis=1))
+        response = np.repeat(self.bit_response[None], members, axis=0)
+        dt2 = BETA * self.time_step_s ** 2
         n_nodes = self.system.n_nodes
-        index = np.concatenate([[0, 1], np.ravel(np.column_stack([2 + nodes,
-                                                                  2 + n_nodes + nodes]))])
-        rank = index.size
-        d = np.zeros((rank, rank))
-        d[:2, :2] = -GAMMA * dt * jacobian
-        for k in range(nodes.size):
-            d[2 + 2 * k:4 + 2 * k, 2 + 2 * k:4 + 2 * k] = BETA * dt * dt * tangent[nodes[k]]
-        z = self.local_directions[:, index].T @ base
-        gram = self.local_gram[np.ix_(index, index)]
-        w = np.linalg.solve(np.eye(rank) + d @ gram, d @ z)
-        return base - self.local_response[:, index] @ w
+        for member in contact_members:
+            nodes = np.flatnonzero(touching[member])
+            index = np.ravel(np.column_stack([2 + nodes, 2 + n_nodes + nodes]))
+            rank = index.size
+            d = np.zeros((rank, rank))
+            for k, node in enumerate(nodes):
+                d[2 * k:2 * k + 2, 2 * k:2 * k + 2] = dt2 * evaluation.contact_tangent[member, node]
+            gram = self.local_gram[np.ix_(index, index)]
+            correction = np.linalg.solve(np.eye(rank) + d @ gram, d)     # (I + D G)^-1 D
+            directions = self.local_response[:, index]
+            y[member] -= directions @ (correction @ (self.local_directions[:, index].T
+                                                     @ y[member]))
+            response[member] -= directions @ (correction @ self.local_gram[np.ix_(index, [0, 1])])
+        return y, response
+
+    def _solve_bit(self, linear, flexibility, start, evaluation) -> _BitSolution:
+        """Solve x = linear + gamma dt H (F(x) - F_c) per member (Newton, backtracking)."""
+        gdt = GAMMA * self.time_step_s
+        law, germ = self.forces.law, self.germ
+        if not self.forces.physics.bit_rock:
+            members = linear.shape[0]
+            return _BitSolution(linear[:, 0], linear[:, 1],
+                                np.full(members, self.static_bit_force[0]), np.zeros(members),
+                                np.zeros(members, bool), np.zeros((members, 2, 2)),
+                                np.ones(members, bool))
+
+        def residual_of(x, force, torque):
+            applied = np.stack([force, torque], axis=1) - self.static_bit_force
+            return x - linear - gdt * np.einsum('mij,mj->mi', flexibility, applied)
+
+        force, torque = evaluation.weight_on_bit_n, evaluation.torque_on_bit_nm
+        lifted, jacobian = evaluation.lifted, evaluation.bit_jacobian
+        g = residual_of(start, force, torque)
+        step = _solve2(np.eye(2) - gdt * flexibility @ jacobian, g)
+        x = start - step
+        # Fast path: one Newton step that stays on the same branch of the law (same signs,
+        # same lift-off state, ROP within a factor of two); its forces are carried linearly
+        # and the outer iteration checks them. Otherwise the guarded solve below.
+        carried = np.stack([force, torque], axis=1) - np.einsum('mij,mj->mi', jacobian, step)
+        # A lifted bit cannot be confirmed by linearisation (its Jacobian is zero): guarded.
+        safe = (np.all(np.sign(x) == np.sign(start), axis=1)
+                & (np.abs(step[:, 0]) <= 0.5 * np.abs(start[:, 0]))
+                & ~lifted & (carried[:, 0] < 0))
+        force = np.where(safe, carried[:, 0], force)
+        torque = np.where(safe, carried[:, 1], torque)
+        solved = safe.copy()
+        if np.all(solved):
+            return _BitSolution(x[:, 0], x[:, 1], force, torque, lifted, jacobian, solved)
+        x = np.where(solved[:, None], x, start)
+        for _ in range(BIT_ITERATIONS):
+            step = _solve2(np.eye(2) - gdt * flexibility @ jacobian, g)
+            size = np.max(np.abs(step) / (np.abs(x) + BIT_SCALE), axis=1)
+            solved |= size <= BIT_TOLERANCE
+            if np.all(solved):
+                break
+            norm = np.linalg.norm(g / BIT_SCALE, axis=1)
+            length = np.where(solved, 0.0, 1.0)
+            for _ in range(30):                           # backtracking on |g|
+                trial = x - length[:, None] * step
+                f, t, lf, jac = law.forces_and_jacobian(trial[:, 0], trial[:, 1], germ)
+                self.counters.bit_law_evaluations += 1
+                g_trial = residual_of(trial, f, t)
+                better = (np.linalg.norm(g_trial / BIT_SCALE, axis=1)
+                          <= (1 - 1e-4 * length) * norm) | solved
+                if np.all(better | (length < 1e-9)):
+                    break
+                length = np.where(better, length, 0.5 * length)
+            moved = ~solved
+            x = np.where(moved[:, None], trial, x)
+            force, torque = np.where(moved, f, force), np.where(moved, t, torque)
+            lifted = np.where(moved, lf, lifted)
+            jacobian = np.where(moved[:, None, None], jac, jacobian)
+            g = np.where(moved[:, None], g_trial, g)
+        return _BitSolution(x[:, 0], x[:, 1], force, torque, lifted, jacobian, solved)
+
+    def _with_bit(self, evaluation: ForceEvaluation, bit: _BitSolution) -> ForceEvaluation:
+        """The evaluation with the bit's forces of the final state (exact)."""
+        full = evaluation.full.copy()
+        system = self.system
+        axial = system.field(0).start + system.bit_node
+        torsion = system.field(1).start + system.bit_node
+        full[:, axial] += (bit.force - evaluation.weight_on_bit_n)
+        full[:, torsion] += (bit.torque - evaluation.torque_on_bit_nm)
+        return replace(evaluation, full=full, weight_on_bit_n=bit.force,
+                       torque_on_bit_nm=bit.torque, rop_m_per_s=bit.rop,
+                       bit_speed_rad_per_s=bit.omega, lifted=bit.lifted,
+                       bit_jacobian=bit.jacobian)
+
+
+def _solve2(matrix, vector):
+    """Solve (m, 2, 2) x = (m, 2) explicitly."""
+    a, b = matrix[:, 0, 0], matrix[:, 0, 1]
+    c, d = matrix[:, 1, 0], matrix[:, 1, 1]
+    determinant = a * d - b * c
+    return np.stack([(d * vector[:, 0] - b * vector[:, 1]) / determinant,
+                     (a * vector[:, 1] - c * vector[:, 0]) / determinant], axis=1)
+
+
+def _pick(members, kept, new):
+    mask = members.reshape((-1,) + (1,) * (np.ndim(kept) - 1))
+    return np.where(mask, new, kept)
+
+
+def _merge_bit(kept: _BitSolution, new: _BitSolution, members) -> _BitSolution:
+    """``new`` for ``members``, ``kept`` for the others."""
+    return _BitSolution(*(_pick(members, getattr(kept, f), getattr(new, f))
+                          for f in ('rop', 'omega', 'force', 'torque', 'lifted', 'jacobian',
+                                    'solved')))
 
 
 def _merge(kept: ForceEvaluation, new: ForceEvaluation, members: np.ndarray) -> ForceEvaluation:
@@ -350,26 +470,20 @@ def _merge(kept: ForceEvaluation, new: ForceEvaluation, members: np.ndarray) -> 
         return kept
     if np.all(members):
         return new
-
-    def pick(a, b):
-        if a is None or b is None:
-            return b if a is None else a
-        mask = members.reshape((-1,) + (1,) * (np.ndim(a) - 1))
-        return np.where(mask, b, a)
-
-    from drill_twin.dynamics.contact import ContactForces
-    contact = ContactForces(pick(kept.contact.radial_force_n, new.contact.radial_force_n),
-                            pick(kept.contact.in_contact, new.contact.in_contact))
-    tangent = (None if kept.contact_tangent is None and new.contact_tangent is None else
-               pick(_tangent_or_zero(kept), _tangent_or_zero(new)))
+    contact = ContactForces(_pick(members, kept.contact.radial_force_n,
+                                  new.contact.radial_force_n),
+                            _pick(members, kept.contact.in_contact, new.contact.in_contact))
+    tangent = None
+    if kept.contact_tangent is not None or new.contact_tangent is not None:
+        tangent = _pick(members, _tangent_or_zero(kept), _tangent_or_zero(new))
     return ForceEvaluation(
-        full=pick(kept.full, new.full), modal=pick(kept.modal, new.modal),
-        weight_on_bit_n=pick(kept.weight_on_bit_n, new.weight_on_bit_n),
-        torque_on_bit_nm=pick(kept.torque_on_bit_nm, new.torque_on_bit_nm),
-        rop_m_per_s=pick(kept.rop_m_per_s, new.rop_m_per_s),
-        bit_speed_rad_per_s=pick(kept.bit_speed_rad_per_s, new.bit_speed_rad_per_s),
-        lifted=pick(kept.lifted, new.lifted), bit_jacobian=pick(kept.bit_jacobian,
-                                                                new.bit_jacobian),
+        full=_pick(members, kept.full, new.full), modal=_pick(members, kept.modal, new.modal),
+        weight_on_bit_n=_pick(members, kept.weight_on_bit_n, new.weight_on_bit_n),
+        torque_on_bit_nm=_pick(members, kept.torque_on_bit_nm, new.torque_on_bit_nm),
+        rop_m_per_s=_pick(members, kept.rop_m_per_s, new.rop_m_per_s),
+        bit_speed_rad_per_s=_pick(members, kept.bit_speed_rad_per_s, new.bit_speed_rad_per_s),
+        lifted=_pick(members, kept.lifted, new.lifted),
+        bit_jacobian=_pick(members, kept.bit_jacobian, new.bit_jacobian),
         contact=contact, contact_tangent=tangent)
 
 

@@ -21,11 +21,13 @@ from drill_twin.modal.reduced_basis import modal_analysis
 
 
 class SimulationDiverged(RuntimeError):
-    """A step produced a non-finite state or did not converge; ``time_s`` says when."""
+    """A step produced a non-finite state or did not converge; ``time_s`` says when and
+    ``members`` which members of the batch failed."""
 
-    def __init__(self, message: str, time_s: float):
+    def __init__(self, message: str, time_s: float, members=()):
         super().__init__(message)
         self.time_s = time_s
+        self.members = tuple(int(m) for m in members)
 
 
 @dataclass(frozen=True)
@@ -151,7 +153,8 @@ class Simulator:
         new_state, result = self.integrator.step(self.state, speed, self.hook_load_command_n)
         if not result.success:
             self.top_drive.speed_rad_per_s = self.state.top_speed_rad_per_s
-            raise SimulationDiverged(result.message, new_state.time_s)
+            raise SimulationDiverged(result.message, new_state.time_s,
+                                     np.flatnonzero(~result.converged))
         previous = self.last
         self.state, self.last = new_state, result.forces
         self.impact_count += np.sum(self.last.contact.in_contact & ~previous.contact.in_contact,
