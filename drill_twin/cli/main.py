@@ -5,10 +5,10 @@ import argparse
 import sys
 
 from drill_twin import __version__
-from drill_twin.cli import modes, simulate
+from drill_twin.cli import modes, montecarlo, simulate
 from drill_twin.cli.common import report_and_exit_code
 
-SUBCOMMANDS = (modes, simulate)
+SUBCOMMANDS = (modes, simulate, montecarlo)
 
 
 def build_parser() -> argparse.ArgumentParser:

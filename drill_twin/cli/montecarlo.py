@@ -1,0 +1,75 @@
+"""``drill-twin montecarlo``: the stochastic study of the paper's Sect. 3-4."""
+from __future__ import annotations
+
+import argparse
+
+from drill_twin.cli.common import UsageError, add_config_arguments, config_from_args
+from drill_twin.cli.progress import ProgressBar
+
+
+def add_parser(subparsers) -> None:
+    parser = subparsers.add_parser(
+        'montecarlo', help='Monte Carlo study of the uncertain bit-rock law',
+        description='Integrate N realizations of the random bit-rock law (dispersion delta) and '
+                    'the mean model, then write statistics, envelopes, the convergence '
+                    'function of Eq. 54 and figures like the paper\'s Figs. 7-16 into DIR.')
+    add_config_arguments(parser)
+    parser.add_argument('--delta', type=float, required=True, help='dispersion of the germ')
+    parser.add_argument('--samples', type=int, required=True, metavar='N',
+                        help='number of realizations')
+    parser.add_argument('--duration', type=float, required=True, metavar='S',
+                        help='simulated time of every realization (s)')
+    parser.add_argument('--out', required=True, metavar='DIR', help='output directory')
+    parser.add_argument('--seed', type=int, default=0,
+                        help='seed of the study: realization j uses the stream (seed, j) '
+                             '(default 0; recorded in summary.json)')
+    parser.add_argument('--window', type=float, default=50.0, metavar='S',
+                        help='stationary window at the end of each run (s, default 50)')
+    parser.add_argument('--batch-size', type=int, default=16, metavar='B',
+                        help='realizations integrated together (bounds memory; default 16)')
+    parser.add_argument('--station', type=float, default=700.0, metavar='X',
+                        help='depth of the radial-displacement statistics (m, default 700; '
+                             'must be one of output.stations_m)')
+    parser.add_argument('--workers', type=int, metavar='W',
+                        help='local processes (default: all cores)')
+    parser.add_argument('--scheduler', metavar='ADDRESS',
+                        help='run on the Dask distributed scheduler at ADDRESS instead')
+    parser.add_argument('--no-figures', action='store_true', help='skip the PNG figures')
+    parser.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    config = config_from_args(args)
+    from drill_twin.uncertainty.executors import make_executor
+    from drill_twin.uncertainty.montecarlo import StudySpec
+    from drill_twin.uncertainty.study import run_study
+    from drill_twin.uncertainty.study_io import summary, write_study
+
+    if args.workers is not None and args.workers < 1:
+        raise UsageError(f'--workers: must be at least 1, got {args.workers}')
+    window = min(args.window, args.duration) if args.duration > 0 else args.window
+    try:
+        spec = StudySpec(dispersion=args.delta, samples=args.samples, duration_s=args.duration,
+                         seed=args.seed, window_s=window, batch_size=args.batch_size,
+                         station_m=args.station)
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    if not any(abs(x - args.station) < 1e-6 for x in config.output.stations_m):
+        raise UsageError(f'--station: {args.station} m is not one of output.stations_m '
+                         f'{list(config.output.stations_m)}')
+    executor = make_executor(args.workers, args.scheduler)
+    try:
+        result = run_study(config, spec, executor, progress=ProgressBar('montecarlo'))
+    finally:
+        executor.close()
+    write_study(result, args.out, figures=not args.no_figures)
+    s = summary(result)
+    cov = s['coefficient_of_variation']
+    print(f'{s["completed_realizations"]} realizations (delta = {spec.dispersion:g}, seed '
+          f'{spec.seed}) in {s["wall_time_s"]:.1f} s on {s["workers"]} worker(s); '
+          f'statistics over the last {spec.window_s:g} s')
+    print('  coefficients of variation: ' + ', '.join(f'{k} {v:.3g}' for k, v in cov.items()))
+    print(f'  realizations with impacts {s["realizations_with_impacts"]}, with lift-off '
+          f'{s["realizations_with_lift_off"]}; failed {len(s["failed_realizations"])}')
+    print(f'  written to {args.out}')
+    return 0
