@@ -3,15 +3,33 @@
 Every executor yields the results of ``function(*arguments)`` for each argument tuple, in
 completion order; the study sorts them by realization index, so the results do not depend
 on the executor.
+
+Bitwise reproducibility. A chunk computes the same numbers wherever it runs provided the
+BLAS library is set up the same way: local worker processes start with the single-threaded
+BLAS environment that Dask's nanny gives its workers, so a study is identical bit for bit
+with 1 or W local workers or a Dask cluster on the same machine. Machines whose CPUs make
+BLAS choose other kernels agree to rounding (about 1e-15), which the dynamics do not amplify
+(tests: about 1e-13 after 40 s).
 """
 from __future__ import annotations
 
 import multiprocessing
+import os
 from concurrent.futures import ProcessPoolExecutor, as_completed
+
+SINGLE_THREADED_BLAS = {'OMP_NUM_THREADS': '1', 'MKL_NUM_THREADS': '1',
+                        'OPENBLAS_NUM_THREADS': '1'}
+"""What distributed's nanny sets for its workers (distributed.nanny.pre-spawn-environ)."""
+
+
+def _worker_environment():
+    """Process initializer: runs before numpy is imported in a spawned worker."""
+    os.environ.update(SINGLE_THREADED_BLAS)
 
 
 class SerialExecutor:
-    """Run every chunk here, one after the other."""
+    """Run every chunk in this process, one after the other (agrees with the others to
+    rounding: this process's BLAS was set up before the study)."""
 
     workers = 1
 
@@ -29,7 +47,8 @@ class LocalProcessExecutor:
     def __init__(self, workers: int):
         self.workers = workers
         self._pool = ProcessPoolExecutor(max_workers=workers,
-                                         mp_context=multiprocessing.get_context('spawn'))
+                                         mp_context=multiprocessing.get_context('spawn'),
+                                         initializer=_worker_environment)
 
     def run(self, function, arguments):
         futures = [self._pool.submit(function, *args) for args in arguments]
@@ -62,8 +81,8 @@ class DaskExecutor:
 
 
 def make_executor(workers: int | None, scheduler: str | None):
-    """Dask if a scheduler address is given, else local processes (serial for 1 worker)."""
+    """Dask if a scheduler address is given, else ``workers`` local processes (default: one
+    per core; even one worker runs in its own process, for identical BLAS set-up)."""
     if scheduler:
         return DaskExecutor(scheduler)
-    workers = workers or multiprocessing.cpu_count()
-    return SerialExecutor() if workers <= 1 else LocalProcessExecutor(workers)
+    return LocalProcessExecutor(max(1, workers or multiprocessing.cpu_count()))
