@@ -5,10 +5,10 @@ import argparse
 import sys
 
 from drill_twin import __version__
-from drill_twin.cli import modes, montecarlo, simulate
+from drill_twin.cli import modes, montecarlo, simulate, twin
 from drill_twin.cli.common import report_and_exit_code
 
-SUBCOMMANDS = (modes, simulate, montecarlo)
+SUBCOMMANDS = (modes, simulate, montecarlo, twin)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -22,8 +22,21 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def split_ros_arguments(argv: list[str]) -> tuple[list[str], list[str]]:
+    """(own arguments, ROS arguments): ROS's run from --ros-args to an optional --."""
+    if '--ros-args' not in argv:
+        return argv, []
+    start = argv.index('--ros-args')
+    end = argv.index('--', start) if '--' in argv[start:] else len(argv)
+    ros = argv[start + 1:end]
+    return argv[:start] + argv[end + 1:], ['--ros-args'] + ros
+
+
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(sys.argv[1:] if argv is None else argv)
+    argv = list(sys.argv[1:] if argv is None else argv)
+    argv, ros_args = split_ros_arguments(argv)
+    args = build_parser().parse_args(argv)
+    args.ros_args = ros_args
     try:
         return int(args.run(args) or 0)
     except KeyboardInterrupt:

@@ -39,7 +39,7 @@ class Observation:
     torque_on_bit_nm (t_bit), depth_of_cut_m_per_rad (regularised, ROP omega / (omega^2 +
     e^2)), lifted (bit off the rock). Top: top_torque_nm (the torque the top drive applies,
     > 0 when driving), top_speed_rad_per_s, top_angle_rad (shared), hook_load_n (shared),
-    hook_position_m (top's axial displacement). Stations (m, n_stations, 3) for the fields
+    hook_position_m, hook_velocity_m_per_s (the top's axial displacement and velocity). Stations (m, n_stations, 3) for the fields
     (u, v, w): station_displacement_m, station_velocity_m_per_s,
     station_acceleration_m_per_s2; station_spin_rate_rad_per_s (m, n_stations, 3) for
     (theta_x', theta_y', theta_z'). Wall: contact_force_n (m, n_nodes) radial force,
@@ -61,6 +61,7 @@ class Observation:
     top_angle_rad: float
     hook_load_n: float
     hook_position_m: np.ndarray
+    hook_velocity_m_per_s: np.ndarray
     station_displacement_m: np.ndarray
     station_velocity_m_per_s: np.ndarray
     station_acceleration_m_per_s2: np.ndarray
@@ -146,6 +147,23 @@ class Simulator:
         self.state.time_s = self.time_s
         self.last = self._evaluate(self.state)
 
+    def reset_members(self, members) -> None:
+        """Restart ``members`` from a safe state: the configured initial motion under the
+        current top speed, twisted to carry the steady torque on bit, with no lateral
+        deflection, at their current depth. The other members are untouched."""
+        members = np.asarray(members, dtype=int)
+        if members.size == 0:
+            return
+        speed = self.top_drive.speed_rad_per_s
+        q, q_rate = self._initial_coordinates(speed, lateral=False, steady_twist=True)
+        depth_column = self.system.blocks['axial'].columns.start
+        q[:, depth_column] = self.state.q[:, depth_column]       # keep how far it drilled
+        fresh = self.integrator.initial_state(q, q_rate, speed, self.hook_load_command_n,
+                                              top_angle_rad=self.state.top_angle_rad)
+        for name in ('q', 'q_rate', 'q_acceleration'):
+            getattr(self.state, name)[members] = getattr(fresh, name)[members]
+        self.last = self._evaluate(self.state)
+
     # -- stepping ------------------------------------------------------------------------
     def step(self) -> StepResult:
         """Advance dt. Raises SimulationDiverged (the state is left as it was)."""
@@ -203,6 +221,7 @@ class Simulator:
             top_angle_rad=state.top_angle_rad,
             hook_load_n=state.hook_load_n,
             hook_position_m=u[:, 0],
+            hook_velocity_m_per_s=rate[:, 0],
             station_displacement_m=np.einsum('sfd,md->msf', fields, u),
             station_velocity_m_per_s=np.einsum('sfd,md->msf', fields, rate),
             station_acceleration_m_per_s2=np.einsum('sfd,md->msf', fields, acceleration),
@@ -214,9 +233,12 @@ class Simulator:
         )
 
     # -- initial state -------------------------------------------------------------------
-    def _initial_coordinates(self, top_speed: float):
+    def _initial_coordinates(self, top_speed: float, lateral: bool = True,
+                             steady_twist: bool | None = None):
         """Rigid axial and rotation speed plus a lateral deflection (Sect. 2.7)."""
         system, config = self.system, self.config
+        if steady_twist is None:
+            steady_twist = config.initial_conditions.steady_twist
         n, m = system.size, self.members
         q = np.zeros((m, n))
         q_rate = np.zeros((m, n))
@@ -226,9 +248,9 @@ class Simulator:
                                             system.model.prestress.static_weight_on_bit_n))
             rigid_column = axial.columns.start                 # the rigid mode comes first
             q_rate[:, rigid_column] = rop / axial.shapes[system.bit_node, 0]
-        if config.initial_conditions.steady_twist and config.physics.bit_rock:
+        if steady_twist and config.physics.bit_rock:
             q[:, system.blocks['torsional'].columns] = self._steady_twist(top_speed)
-        amplitude = config.initial_conditions.lateral_deflection_m
+        amplitude = config.initial_conditions.lateral_deflection_m if lateral else 0.0
         bending = system.blocks['bending_y']
         if amplitude > 0 and bending.shapes.shape[1] > 0:
             nodes = system.n_nodes

@@ -1,0 +1,76 @@
+"""``drill-twin twin``: the ROS 2 twin node (the same node as ``ros2 run drill_twin twin``)."""
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from drill_twin.cli.common import UsageError
+from drill_twin.config.paths import config_directory
+
+
+def add_parser(subparsers) -> None:
+    parser = subparsers.add_parser(
+        'twin', help='run the twin node (ROS 2)',
+        description='Run the digital twin as a ROS 2 node beside the rig: it paces the model '
+                    'by the wall clock, takes top-drive speed and hook-load commands, '
+                    'publishes the bit, vibration, contacts, KPIs and ensemble bounds, and '
+                    'logs everything to MCAP. Options set node parameters (config/twin.yaml '
+                    'holds the defaults); anything after --ros-args goes to ROS.')
+    parser.add_argument('--params-file', metavar='FILE',
+                        help='node parameters (default: the shipped config/twin.yaml)')
+    parser.add_argument('--config', metavar='FILE', help='model configuration YAML')
+    parser.add_argument('--set', dest='overrides', action='append', default=[],
+                        metavar='KEY=VALUE', help='override one value of the model configuration')
+    parser.add_argument('--duration', type=float, metavar='S',
+                        help='stop after S simulated seconds (default: run until stopped)')
+    parser.add_argument('--log-dir', metavar='DIR', help='where the MCAP log goes (default runs/)')
+    parser.add_argument('--no-log', action='store_true', help='do not record a log')
+    parser.add_argument('--fast', action='store_true',
+                        help='run as fast as possible and publish /clock')
+    parser.add_argument('--ensemble', type=int, metavar='N', help='ensemble members (default 16)')
+    parser.add_argument('--delta', type=float, help='dispersion of the ensemble (default 0.01)')
+    parser.add_argument('--seed', type=int, help='seed of the ensemble (default 0)')
+    parser.set_defaults(run=run)
+
+
+def ros_arguments(args: argparse.Namespace) -> list[str]:
+    """The ROS command line of the node for the parsed options."""
+    params_file = args.params_file or str(config_directory() / 'twin.yaml')
+    if not Path(params_file).is_file():
+        raise UsageError(f'--params-file: {params_file}: no such file')
+    ros = ['--ros-args', '--params-file', params_file]
+
+    def set_parameter(name, value):
+        ros.extend(['-p', f'{name}:={json.dumps(value)}'])
+
+    if args.config:
+        if not Path(args.config).is_file():
+            raise UsageError(f'--config: {args.config}: no such file')
+        set_parameter('model_config', str(Path(args.config).resolve()))
+    if args.overrides:
+        set_parameter('model_overrides', args.overrides)
+    if args.duration is not None:
+        if not args.duration > 0:
+            raise UsageError(f'--duration: must be positive, got {args.duration}')
+        set_parameter('duration_s', float(args.duration))
+    if args.log_dir:
+        set_parameter('log_dir', args.log_dir)
+    if args.no_log:
+        set_parameter('log_enabled', False)
+    if args.fast:
+        set_parameter('fast', True)
+    if args.ensemble is not None:
+        set_parameter('ensemble_members', args.ensemble)
+    if args.delta is not None:
+        set_parameter('ensemble_dispersion', float(args.delta))
+    if args.seed is not None:
+        set_parameter('seed', args.seed)
+    return ros + list(getattr(args, 'ros_args', []))
+
+
+def run(args: argparse.Namespace) -> int:
+    ros = ros_arguments(args)
+    from drill_twin.ros.twin_node import run as run_node
+
+    return run_node(['drill-twin'] + ros)

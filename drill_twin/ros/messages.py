@@ -1,0 +1,120 @@
+"""Twin snapshots as standard ROS messages (units and conventions: drill_twin.interface)."""
+from __future__ import annotations
+
+import math
+
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import Vector3Stamped, WrenchStamped
+from rcl_interfaces.msg import Log
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import Imu, JointState
+from std_msgs.msg import Float64, Float64MultiArray, Header, MultiArrayDimension
+
+from drill_twin import interface as itf
+from drill_twin.twin.engine import BitState, TwinEvent, TwinSnapshot
+
+LEVELS = {'info': DiagnosticStatus.OK, 'warn': DiagnosticStatus.WARN,
+          'error': DiagnosticStatus.ERROR}
+LOG_LEVELS = {'info': Log.INFO, 'warn': Log.WARN, 'error': Log.ERROR}
+
+
+def stamp(time_ns: int) -> Time:
+    return Time(sec=int(time_ns // 1_000_000_000), nanosec=int(time_ns % 1_000_000_000))
+
+
+def header(time_ns: int, frame_id: str) -> Header:
+    return Header(stamp=stamp(time_ns), frame_id=frame_id)
+
+
+def bit_state(bit: BitState, time_ns: int) -> JointState:
+    """bit_axial: depth, ROP, WOB; bit_rotation: angle, speed, TOB."""
+    return JointState(header=header(time_ns, itf.FRAME_BIT),
+                      name=[itf.BIT_AXIAL, itf.BIT_ROTATION],
+                      position=[bit.depth_m, bit.angle_rad],
+                      velocity=[bit.rop_m_per_s, bit.speed_rad_per_s],
+                      effort=[bit.weight_on_bit_n, bit.torque_on_bit_nm])
+
+
+def bit_wrench(bit: BitState, time_ns: int) -> WrenchStamped:
+    """Force and torque of the rock on the bit along the string axis x (down)."""
+    message = WrenchStamped(header=header(time_ns, itf.FRAME_BIT))
+    message.wrench.force.x = bit.weight_on_bit_n
+    message.wrench.torque.x = bit.torque_on_bit_nm
+    return message
+
+
+def top_state(snapshot: TwinSnapshot, time_ns: int) -> JointState:
+    """top_drive: angle, speed, torque applied; hook: travel, its rate, hook load."""
+    o = snapshot.observation
+    return JointState(header=header(time_ns, itf.FRAME_TOP),
+                      name=[itf.TOP_DRIVE, itf.HOOK],
+                      position=[o.top_angle_rad, float(o.hook_position_m[0])],
+                      velocity=[o.top_speed_rad_per_s, float(o.hook_velocity_m_per_s[0])],
+                      effort=[float(o.top_torque_nm[0]), o.hook_load_n])
+
+
+def station_messages(snapshot: TwinSnapshot, stations_m, time_ns: int):
+    """(topic, message) of every station: Imu (accelerations m/s^2: axial, v, w; angular
+    velocity rad/s: spin, theta_y', theta_z'; orientation not provided) and the displacement
+    (x axial, y = v, z = w, m)."""
+    o = snapshot.observation
+    out = []
+    for k, x_m in enumerate(stations_m):
+        frame = itf.station_frame(x_m)
+        imu = Imu(header=header(time_ns, frame))
+        imu.orientation_covariance[0] = -1.0                  # REP 145: no orientation
+        a = o.station_acceleration_m_per_s2[0, k]
+        w = o.station_spin_rate_rad_per_s[0, k]
+        imu.linear_acceleration.x, imu.linear_acceleration.y, imu.linear_acceleration.z = (
+            float(a[0]), float(a[1]), float(a[2]))
+        imu.angular_velocity.x, imu.angular_velocity.y, imu.angular_velocity.z = (
+            float(w[0]), float(w[1]), float(w[2]))
+        d = o.station_displacement_m[0, k]
+        displacement = Vector3Stamped(header=header(time_ns, frame))
+        displacement.vector.x, displacement.vector.y, displacement.vector.z = (
+            float(d[0]), float(d[1]), float(d[2]))
+        out.append((itf.vibration_imu_topic(x_m), imu))
+        out.append((itf.vibration_displacement_topic(x_m), displacement))
+    return out
+
+
+def contact_forces(snapshot: TwinSnapshot) -> Float64MultiArray:
+    """Radial wall force at every node, top to bottom (N)."""
+    forces = snapshot.observation.contact_force_n[0]
+    message = Float64MultiArray(data=[float(f) for f in forces])
+    message.layout.dim = [MultiArrayDimension(label='node', size=forces.size,
+                                              stride=forces.size)]
+    return message
+
+
+def scalar(value: float) -> Float64:
+    return Float64(data=float(value) if math.isfinite(value) else 0.0)
+
+
+def clock(time_ns: int) -> Clock:
+    return Clock(clock=stamp(time_ns))
+
+
+def _status(level: str, name: str, message: str, values: dict) -> DiagnosticStatus:
+    return DiagnosticStatus(level=LEVELS[level], name=f'drill_twin: {name}', message=message,
+                            hardware_id='drill_twin',
+                            values=[KeyValue(key=str(k), value=str(v)) for k, v in values.items()])
+
+
+def events(events: tuple[TwinEvent, ...], time_ns: int) -> DiagnosticArray:
+    """One status per event (impacts, lift-off, resets, rejected commands)."""
+    return DiagnosticArray(header=header(time_ns, ''), status=[
+        _status(e.level, e.kind.replace('_', ' '), e.message,
+                {'sim_time_s': f'{e.time_s:.6f}', **e.values}) for e in events])
+
+
+def health(values: dict, level: str, message: str, time_ns: int) -> DiagnosticArray:
+    return DiagnosticArray(header=header(time_ns, ''),
+                           status=[_status(level, 'twin health', message, values)])
+
+
+def log(level: str, text: str, name: str, time_ns: int) -> Log:
+    """A /rosout record of the twin's own log line (for the MCAP log)."""
+    return Log(stamp=stamp(time_ns), level=LOG_LEVELS[level], name=name, msg=text,
+               file='', function='', line=0)

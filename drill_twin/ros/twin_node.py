@@ -1,0 +1,312 @@
+"""The twin as an rclpy node: a thin boundary around :class:`~drill_twin.twin.engine.TwinEngine`.
+
+A timer (``rate_hz``, 100 Hz by default) advances the engine by 1 / rate_hz of simulated time
+in model sub-steps and publishes the results; with ``fast`` or ``use_sim_time`` it ticks as
+fast as it can and publishes /clock. Commands arrive on two Float64 topics and take effect on
+the next model step. Every published message, the commands as applied and the twin's own log
+lines are recorded to an MCAP log. Header stamps, /clock and the log times use the twin's
+clock: the ROS time at start plus the simulated time (from zero in fast mode).
+"""
+from __future__ import annotations
+
+import datetime
+import sys
+import time
+from pathlib import Path
+
+import rclpy
+import yaml
+from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
+                                SetParametersResult)
+from rclpy.exceptions import ParameterUninitializedException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.task import Future
+from std_msgs.msg import Float64
+
+from drill_twin import __version__
+from drill_twin import interface as itf
+from drill_twin.config import ConfigError, load_config
+from drill_twin.config.loader import config_to_dict
+from drill_twin.recording.qos import rclpy_qos_profile
+from drill_twin.recording.twin_log import TwinLog
+from drill_twin.ros import messages
+from drill_twin.ros.parameters import BY_NAME, PARAMETERS, unsafe_change_reason
+from drill_twin.twin.engine import CommandLimits, CommandRejected, EnsembleSettings, TwinEngine
+
+FAST_PERIOD_S = 1e-6
+
+
+class LogDirectoryError(RuntimeError):
+    """The log cannot be written and ``on_log_error`` says exit."""
+
+
+def _descriptor(spec) -> ParameterDescriptor:
+    descriptor = ParameterDescriptor(description=spec.description)
+    if spec.low is not None and isinstance(spec.default, int) and not isinstance(spec.default,
+                                                                                  bool):
+        descriptor.integer_range = [IntegerRange(from_value=int(spec.low),
+                                                 to_value=int(spec.high), step=1)]
+    elif spec.low is not None and isinstance(spec.default, float):
+        descriptor.floating_point_range = [FloatingPointRange(from_value=float(spec.low),
+                                                              to_value=float(spec.high))]
+    if spec.choices:
+        descriptor.additional_constraints = 'one of: ' + ', '.join(spec.choices)
+    return descriptor
+
+
+class TwinNode(Node):
+    """The twin node (see the module docstring); ``done`` completes when it should stop."""
+
+    def __init__(self, **kwargs):
+        super().__init__(itf.NODE_NAME, **kwargs)
+        for spec in PARAMETERS:
+            default = Parameter.Type.STRING_ARRAY if spec.name == 'model_overrides' else spec.default
+            self.declare_parameter(spec.name, default, _descriptor(spec))
+        p = {spec.name: self._value(spec.name) for spec in PARAMETERS}
+        p['model_overrides'] = [item for item in (p['model_overrides'] or []) if item]
+        self.fast = bool(p['fast']) or bool(self.get_parameter('use_sim_time').value)
+        if p['on_log_error'] not in BY_NAME['on_log_error'].choices:
+            raise ConfigError('parameter', 'on_log_error',
+                              f"must be 'continue' or 'exit', got {p['on_log_error']!r}")
+        self.params = p
+        self.config = load_config(p['model_config'] or None, p['model_overrides'])
+        self.engine = TwinEngine(
+            self.config,
+            EnsembleSettings(members=p['ensemble_members'], dispersion=p['ensemble_dispersion'],
+                             seed=p['seed']),
+            self._limits(p), kpi_window_s=p['kpi_window_s'])
+        dt = self.engine.dt
+        self.substeps = max(1, round(1.0 / (p['rate_hz'] * dt)))
+        self.tick_s = self.substeps * dt
+        self.dt_ns = int(round(dt * 1e9))
+        self.epoch_ns = 0 if self.fast else self.get_clock().now().nanoseconds
+        self.stations_m = [s.x_m for s in self.engine.simulator.system.stations]
+        self.ticks = 0
+        self.done = Future()
+        self._health_mark = (time.perf_counter(), 0.0)
+        self._outputs = {}
+        for topic, (type_, qos) in self._published_topics().items():
+            self._outputs[topic] = self.create_publisher(type_, topic, rclpy_qos_profile(qos))
+        command_qos = rclpy_qos_profile(itf.STATE_QOS)
+        self.create_subscription(Float64, itf.CMD_TOP_DRIVE_SPEED, self._on_top_drive_speed,
+                                 command_qos)
+        self.create_subscription(Float64, itf.CMD_HOOK_LOAD, self._on_hook_load, command_qos)
+        self.log = self._open_log(p) if p['log_enabled'] else None
+        self.timer = self.create_timer(FAST_PERIOD_S if self.fast else 1.0 / p['rate_hz'],
+                                       self._on_tick)
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self._report('info', f'drill_twin {__version__}: {self.engine.simulator.members - 1} '
+                     f'ensemble members (delta {p["ensemble_dispersion"]:g}, seed {p["seed"]}), '
+                     f'{self.substeps} steps of {dt * 1e3:g} ms per tick, '
+                     + ('fast, publishing /clock' if self.fast else f'{p["rate_hz"]:g} Hz')
+                     + (f'; logging to {self.log.path}' if self.log else '; no log'))
+
+    # -- set-up --------------------------------------------------------------------------
+    def _value(self, name: str):
+        try:
+            return self.get_parameter(name).value
+        except ParameterUninitializedException:          # a string array left unset
+            return None
+
+    @staticmethod
+    def _limits(p) -> CommandLimits:
+        return CommandLimits(top_drive_speed_max_rad_per_s=p['top_drive_speed_max_rad_per_s'],
+                             hook_load_min_n=p['hook_load_min_n'],
+                             hook_load_max_n=p['hook_load_max_n'])
+
+    def _published_topics(self):
+        from diagnostic_msgs.msg import DiagnosticArray
+        from geometry_msgs.msg import Vector3Stamped, WrenchStamped
+        from rosgraph_msgs.msg import Clock
+        from sensor_msgs.msg import Imu, JointState
+        from std_msgs.msg import Float64MultiArray
+
+        state = itf.STATE_QOS
+        topics = {itf.BIT_STATE: (JointState, state), itf.BIT_WRENCH: (WrenchStamped, state),
+                  itf.TOP_STATE: (JointState, state),
+                  itf.CONTACT_FORCES: (Float64MultiArray, state),
+                  itf.KPI_STICK_SLIP: (Float64, state), itf.KPI_MSE: (Float64, state),
+                  itf.KPI_ROP: (Float64, state),
+                  itf.DIAGNOSTICS: (DiagnosticArray, itf.DIAGNOSTICS_QOS)}
+        if self.engine.ensemble.members:
+            for topic in (itf.ENSEMBLE_MEAN, itf.ENSEMBLE_LOWER, itf.ENSEMBLE_UPPER):
+                topics[topic] = (JointState, state)
+        for x_m in self.stations_m:
+            topics[itf.vibration_imu_topic(x_m)] = (Imu, state)
+            topics[itf.vibration_displacement_topic(x_m)] = (Vector3Stamped, state)
+        if self.fast:
+            topics[itf.CLOCK] = (Clock, itf.CLOCK_QOS)
+        return topics
+
+    def _open_log(self, p):
+        stamp = datetime.datetime.now(datetime.timezone.utc).strftime('%Y%m%dT%H%M%SZ')
+        path = Path(p['log_dir']) / f'drill_twin_{stamp}.mcap'
+        counter = 1
+        while path.exists():
+            path = Path(p['log_dir']) / f'drill_twin_{stamp}_{counter}.mcap'
+            counter += 1
+        metadata = {'version': __version__, 'ensemble_members': str(p['ensemble_members']),
+                    'ensemble_dispersion': repr(p['ensemble_dispersion']),
+                    'rate_hz': repr(p['rate_hz']), 'substeps': str(self.substeps),
+                    'time_step_s': repr(self.engine.dt), 'fast': str(self.fast).lower(),
+                    'clock_epoch_ns': str(self.epoch_ns), 'kpi_window_s': repr(p['kpi_window_s'])}
+        try:
+            return TwinLog(path, self.stations_m,
+                           yaml.safe_dump(config_to_dict(self.config), sort_keys=False),
+                           p['seed'], metadata)
+        except OSError as error:
+            text = f'cannot write the log {path}: {error.strerror or error}'
+            if p['on_log_error'] == 'exit':
+                raise LogDirectoryError(text) from None
+            self.get_logger().error(text + '; running without a log (on_log_error: continue)')
+            return None
+
+    # -- time ----------------------------------------------------------------------------
+    def twin_time_ns(self) -> int:
+        """The twin's clock (ns): the epoch plus the simulated time."""
+        return self.epoch_ns + self.engine.step_index * self.dt_ns
+
+    # -- commands ------------------------------------------------------------------------
+    def _on_top_drive_speed(self, message: Float64) -> None:
+        self._command(itf.CMD_TOP_DRIVE_SPEED, message, self.engine.set_top_drive_speed)
+
+    def _on_hook_load(self, message: Float64) -> None:
+        self._command(itf.CMD_HOOK_LOAD, message, self.engine.set_hook_load)
+
+    def _command(self, topic, message, apply) -> None:
+        try:
+            apply(message.data)
+        except CommandRejected as error:
+            self._report('warn', f'{topic}: {error}; the previous command stays')
+            return
+        if self.log:
+            self.log.write(topic, message, self.twin_time_ns())    # takes effect at this time
+
+    # -- the tick ------------------------------------------------------------------------
+    def _on_tick(self) -> None:
+        if self.done.done():
+            return
+        snapshot = self.engine.advance(self.substeps)
+        self.ticks += 1
+        now = self.twin_time_ns()
+        self._publish(itf.BIT_STATE, messages.bit_state(snapshot.bit, now), now)
+        self._publish(itf.BIT_WRENCH, messages.bit_wrench(snapshot.bit, now), now)
+        self._publish(itf.TOP_STATE, messages.top_state(snapshot, now), now)
+        self._publish(itf.CONTACT_FORCES, messages.contact_forces(snapshot), now)
+        for topic, message in messages.station_messages(snapshot, self.stations_m, now):
+            self._publish(topic, message, now)
+        if self._due(self.params['kpi_rate_hz']):
+            self._publish(itf.KPI_STICK_SLIP, messages.scalar(snapshot.stick_slip_severity), now)
+            self._publish(itf.KPI_MSE, messages.scalar(snapshot.mse_pa), now)
+            self._publish(itf.KPI_ROP, messages.scalar(snapshot.rop_m_per_h), now)
+        if snapshot.ensemble_mean is not None and self._due(self.params['ensemble_rate_hz']):
+            self._publish(itf.ENSEMBLE_MEAN, messages.bit_state(snapshot.ensemble_mean, now), now)
+            self._publish(itf.ENSEMBLE_LOWER, messages.bit_state(snapshot.ensemble_lower, now),
+                          now)
+            self._publish(itf.ENSEMBLE_UPPER, messages.bit_state(snapshot.ensemble_upper, now),
+                          now)
+        if snapshot.events:
+            self._publish(itf.DIAGNOSTICS, messages.events(snapshot.events, now), now)
+            for event in snapshot.events:
+                if event.kind != 'command_rejected':            # already reported
+                    self._report(event.level, event.message)
+        if self._due(self.params['health_rate_hz']):
+            self._publish_health(snapshot, now)
+        if self.fast:
+            self._publish(itf.CLOCK, messages.clock(now), now)
+        duration = self.params['duration_s']
+        if duration > 0 and self.engine.time_s >= duration - 0.5 * self.engine.dt:
+            self._report('info', f'{duration:g} s simulated: stopping')
+            self.done.set_result(True)
+
+    def _due(self, rate_hz: float) -> bool:
+        every = max(1, round(1.0 / (rate_hz * self.tick_s)))
+        return self.ticks % every == 0
+
+    def _publish(self, topic: str, message, time_ns: int) -> None:
+        self._outputs[topic].publish(message)
+        if self.log:
+            self.log.write(topic, message, time_ns)
+
+    def _publish_health(self, snapshot, now: int) -> None:
+        wall, simulated = time.perf_counter(), self.engine.time_s
+        previous_wall, previous_simulated = self._health_mark
+        self._health_mark = (wall, simulated)
+        factor = (simulated - previous_simulated) / max(wall - previous_wall, 1e-9)
+        h = snapshot.health
+        behind = not self.fast and factor < 0.95
+        values = {'real_time_factor': f'{factor:.3f}', 'sim_time_s': f'{simulated:.3f}',
+                  'tick_time_ms': f'{1e3 * h["tick_wall_time_s"]:.2f}',
+                  'tick_time_max_ms': f'{1e3 * h["tick_wall_time_max_s"]:.2f}',
+                  'tick_period_ms': f'{1e3 * self.tick_s:.2f}',
+                  'iterations_per_step': f'{h["iterations_per_step"]:.2f}',
+                  'members': h['members'], 'resets': h['resets'],
+                  'rejected_commands': h['rejected_commands'],
+                  'ensemble_members_touching_wall': h['ensemble_members_touching_wall'],
+                  'ensemble_members_lifted_off': h['ensemble_members_lifted_off'],
+                  'log': str(self.log.path) if self.log and self.log.open else 'none'}
+        message = ('falling behind real time' if behind else 'running')
+        self._publish(itf.DIAGNOSTICS, messages.health(values, 'warn' if behind else 'info',
+                                                       message, now), now)
+        if self.log:
+            self.log.flush()
+
+    def _report(self, level: str, text: str) -> None:
+        """A log line to rosout, and to the MCAP log's /rosout."""
+        getattr(self.get_logger(), {'info': 'info', 'warn': 'warning', 'error': 'error'}[level])(
+            text)
+        if self.log:
+            now = self.twin_time_ns()
+            self.log.write(itf.ROSOUT, messages.log(level, text, self.get_name(), now), now)
+
+    # -- parameters at run time ----------------------------------------------------------
+    def _on_set_parameters(self, parameters) -> SetParametersResult:
+        for parameter in parameters:
+            spec = BY_NAME.get(parameter.name)
+            if parameter.name == 'use_sim_time' or (spec is not None and not spec.safe):
+                return SetParametersResult(successful=False,
+                                           reason=unsafe_change_reason(parameter.name))
+            if spec is not None and spec.choices and parameter.value not in spec.choices:
+                return SetParametersResult(successful=False, reason=(
+                    f'{parameter.name} must be one of {", ".join(spec.choices)}'))
+        updated = dict(self.params)
+        updated.update({p.name: p.value for p in parameters if p.name in BY_NAME})
+        if updated['hook_load_min_n'] > updated['hook_load_max_n']:
+            return SetParametersResult(successful=False,
+                                       reason='hook_load_min_n must not exceed hook_load_max_n')
+        self.params = updated
+        self.engine.limits = self._limits(updated)
+        self.engine.kpi_window_s = float(updated['kpi_window_s'])
+        return SetParametersResult(successful=True)
+
+    # -- ending --------------------------------------------------------------------------
+    def close(self) -> None:
+        """Complete the log (safe to call twice)."""
+        if self.log:
+            self.log.close()
+
+
+def run(ros_args: list[str]) -> int:
+    """Run the twin until ``duration_s`` or a signal (SIGINT, SIGTERM); return the status."""
+    rclpy.init(args=ros_args)
+    node = None
+    executor = SingleThreadedExecutor()
+    status = 0
+    try:
+        node = TwinNode()
+        executor.add_node(node)
+        executor.spin_until_future_complete(node.done)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except LogDirectoryError as error:
+        print(f'drill-twin: {error} (on_log_error: exit)', file=sys.stderr)
+        status = 1
+    finally:
+        if node is not None:
+            node.close()
+            node.destroy_node()
+        executor.shutdown()
+        rclpy.try_shutdown()
+    return status
