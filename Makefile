@@ -19,7 +19,7 @@ $(STAMP): setup.py setup.cfg package.xml
 	@touch $(STAMP)
 
 twin: $(STAMP)
-	$(BIN)/drill-twin modes
+	$(BIN)/drill-twin twin
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

@@ -16,8 +16,10 @@ from pathlib import Path
 
 import rclpy
 import yaml
+from threadpoolctl import threadpool_limits
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 SetParametersResult)
+from rclpy._rclpy_pybind11 import RCLError
 from rclpy.exceptions import ParameterUninitializedException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
@@ -186,7 +188,7 @@ class TwinNode(Node):
 
     # -- the tick ------------------------------------------------------------------------
     def _on_tick(self) -> None:
-        if self.done.done():
+        if self.done.done() or not self.context.ok():       # stopping: publish nothing more
             return
         snapshot = self.engine.advance(self.substeps)
         self.ticks += 1
@@ -226,7 +228,12 @@ class TwinNode(Node):
         return self.ticks % every == 0
 
     def _publish(self, topic: str, message, time_ns: int) -> None:
-        self._outputs[topic].publish(message)
+        try:
+            self._outputs[topic].publish(message)
+        except RCLError:
+            if self.context.ok():
+                raise
+            return                                  # a signal shut the context down mid-tick
         if self.log:
             self.log.write(topic, message, time_ns)
 
@@ -289,7 +296,17 @@ class TwinNode(Node):
 
 
 def run(ros_args: list[str]) -> int:
-    """Run the twin until ``duration_s`` or a signal (SIGINT, SIGTERM); return the status."""
+    """Run the twin until ``duration_s`` or a signal (SIGINT, SIGTERM); return the status.
+
+    BLAS is single-threaded for the node's whole life: the model's matrices are small (threads
+    cost more than they save on this 2-core class of machine), and a run is then reproduced
+    bit for bit by ``drill-twin replay --resimulate``.
+    """
+    with threadpool_limits(limits=1, user_api='blas'):
+        return _run(ros_args)
+
+
+def _run(ros_args: list[str]) -> int:
     rclpy.init(args=ros_args)
     node = None
     executor = SingleThreadedExecutor()

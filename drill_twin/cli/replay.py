@@ -1,0 +1,50 @@
+"""``drill-twin replay``: republish a twin log, or re-run the twin on its commands."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from drill_twin.cli.common import UsageError
+
+
+def add_parser(subparsers) -> None:
+    parser = subparsers.add_parser(
+        'replay', help='republish a twin log, or re-simulate it',
+        description='Republish the topics of a twin MCAP log with their recorded timing '
+                    '(scaled by --rate), or with --resimulate re-run the twin on the '
+                    'recorded commands and seed and report how far its bit state is from '
+                    'the recorded one (zero for the same version of drill_twin).')
+    parser.add_argument('log', metavar='LOG.mcap')
+    parser.add_argument('--rate', type=float, default=1.0, help='playback speed factor')
+    parser.add_argument('--resimulate', action='store_true',
+                        help='re-run the twin instead of republishing')
+    parser.add_argument('--tolerance', type=float, default=0.0,
+                        help='with --resimulate: largest accepted difference (default 0: '
+                             'identical); exit status 1 beyond it')
+    parser.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    path = Path(args.log)
+    if not path.is_file():
+        raise UsageError(f'{path}: no such file')
+    if not args.rate > 0:
+        raise UsageError(f'--rate: must be positive, got {args.rate}')
+    if args.resimulate:
+        from drill_twin.twin.resimulate import resimulate
+
+        try:
+            result = resimulate(path)
+        except ValueError as error:
+            raise UsageError(str(error)) from None
+        worst = max(result.max_difference.values()) if result.max_difference else 0.0
+        print(f'resimulated {path}: {result.compared} bit states compared, '
+              f'{result.commands} commands replayed (log from drill_twin '
+              f'{result.recorded_version})')
+        for field, value in result.max_difference.items():
+            print(f'  max |difference| {field:<18} {value:.3g}')
+        print('identical' if result.identical else f'largest difference {worst:.3g}')
+        return 0 if result.compared and worst <= args.tolerance else 1
+    from drill_twin.ros.replay import replay
+
+    return replay(path, args.rate, ['drill-twin'] + list(getattr(args, 'ros_args', [])))
