@@ -262,8 +262,15 @@ class TwinNode(Node):
 
     def _report(self, level: str, text: str) -> None:
         """A log line to rosout, and to the MCAP log's /rosout."""
-        getattr(self.get_logger(), {'info': 'info', 'warn': 'warning', 'error': 'error'}[level])(
-            text)
+        # One call site per severity: rclpy keys a logger's call context by the calling line
+        # and raises ValueError if the severity changes between calls from the same line.
+        logger = self.get_logger()
+        if level == 'error':
+            logger.error(text)
+        elif level == 'warn':
+            logger.warning(text)
+        else:
+            logger.info(text)
         if self.log:
             now = self.twin_time_ns()
             self.log.write(itf.ROSOUT, messages.log(level, text, self.get_name(), now), now)
