@@ -96,14 +96,18 @@ class TwinNode(Node):
                                  command_qos)
         self.create_subscription(Float64, itf.CMD_HOOK_LOAD, self._on_hook_load, command_qos)
         self.log = self._open_log(p) if p['log_enabled'] else None
-        self.timer = self.create_timer(FAST_PERIOD_S if self.fast else 1.0 / p['rate_hz'],
-                                       self._on_tick)
-        self.add_on_set_parameters_callback(self._on_set_parameters)
-        self._report('info', f'drill_twin {__version__}: {self.engine.simulator.members - 1} '
-                     f'ensemble members (delta {p["ensemble_dispersion"]:g}, seed {p["seed"]}), '
-                     f'{self.substeps} steps of {dt * 1e3:g} ms per tick, '
-                     + ('fast, publishing /clock' if self.fast else f'{p["rate_hz"]:g} Hz')
-                     + (f'; logging to {self.log.path}' if self.log else '; no log'))
+        try:
+            self.timer = self.create_timer(FAST_PERIOD_S if self.fast else 1.0 / p['rate_hz'],
+                                           self._on_tick)
+            self.add_on_set_parameters_callback(self._on_set_parameters)
+            self._report('info', f'drill_twin {__version__}: {self.engine.simulator.members - 1} '
+                         f'ensemble members (delta {p["ensemble_dispersion"]:g}, seed '
+                         f'{p["seed"]}), {self.substeps} steps of {dt * 1e3:g} ms per tick, '
+                         + ('fast, publishing /clock' if self.fast else f'{p["rate_hz"]:g} Hz')
+                         + (f'; logging to {self.log.path}' if self.log else '; no log'))
+        except BaseException:               # e.g. a signal while starting: finish the log
+            self.close()
+            raise
 
     # -- set-up --------------------------------------------------------------------------
     def _value(self, name: str):
@@ -324,6 +328,10 @@ def _run(ros_args: list[str]) -> int:
         executor.spin_until_future_complete(node.done)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except RCLError:
+        if rclpy.ok():
+            raise
+        # A signal shut the context down while the node was starting: a normal stop.
     except LogDirectoryError as error:
         print(f'drill-twin: {error} (on_log_error: exit)', file=sys.stderr)
         status = 1
