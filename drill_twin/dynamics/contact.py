@@ -36,7 +36,7 @@ def contact_force(system, stiffness_n_per_m: float, friction: float,
     in_contact = penetration > 0.0
     force = np.zeros_like(u)
     tangent = None
-    if not np.any(in_contact):
+    if not in_contact.any():
         return force, ContactForces(np.zeros_like(radius), in_contact), tangent
     safe_radius = np.where(in_contact, radius, 1.0)
     magnitude = np.where(in_contact, stiffness_n_per_m * penetration, 0.0)

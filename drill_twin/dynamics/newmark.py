@@ -254,7 +254,7 @@ class NewmarkIntegrator:
             residual = (self._mass_times(a) + v @ self.damping_t + self._stiffness_times(d)
                         - evaluation.modal - load)
             updated, solution = self._update(a, residual, evaluation)
-            if np.all(active):
+            if active.all():
                 increment, a, bit = a - updated, updated, solution
             else:
                 increment = np.where(active[:, None], a - updated, 0.0)
@@ -278,7 +278,7 @@ class NewmarkIntegrator:
                 self._rate = np.where(usable, rate, self._rate)
                 self._steps_since_verified = np.where(usable, 0, self._steps_since_verified)
             active &= ~done
-            if not np.any(active):
+            if not active.any():
                 break
         evaluation = self._with_bit(final, bit)
         self._steps_since_verified += 1
@@ -287,7 +287,7 @@ class NewmarkIntegrator:
         v = v_pred + GAMMA * dt * a
         finite = np.all(np.isfinite(d), axis=1) & np.all(np.isfinite(v), axis=1)
         converged = finite & bit_ok & (error <= self.tolerance)
-        success = bool(np.all(converged))
+        success = bool(converged.all())
         time = state.time_s + dt
         message = ''
         if not np.all(finite):
@@ -316,7 +316,7 @@ class NewmarkIntegrator:
         accept = np.isfinite(self._rate) & (self._steps_since_verified < VERIFY_EVERY)
         if self._active is not None:
             contact, lifted = self._active
-            accept &= np.all(contact == evaluation.contact.in_contact, axis=1)
+            accept &= (contact == evaluation.contact.in_contact).all(axis=1)
             accept &= lifted == evaluation.lifted
         with np.errstate(invalid='ignore'):
             accept &= self._rate / (1.0 - self._rate) * error <= self.tolerance
@@ -400,7 +400,7 @@ class NewmarkIntegrator:
         force = np.where(safe, carried[:, 0], force)
         torque = np.where(safe, carried[:, 1], torque)
         solved = safe.copy()
-        if np.all(solved):
+        if solved.all():
             return _BitSolution(x[:, 0], x[:, 1], force, torque, lifted, jacobian, solved)
         x = np.where(solved[:, None], x, start)
         for _ in range(BIT_ITERATIONS):

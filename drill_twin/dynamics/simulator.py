@@ -82,7 +82,7 @@ class TopDrive:
     def advance(self, command_rad_per_s: float, dt: float) -> float:
         change = command_rad_per_s - self.speed_rad_per_s
         limit = self.max_acceleration * dt
-        self.speed_rad_per_s += float(np.clip(change, -limit, limit))
+        self.speed_rad_per_s += min(max(change, -limit), limit)
         return self.speed_rad_per_s
 
 
