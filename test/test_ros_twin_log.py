@@ -1,0 +1,202 @@
+"""``drill-twin twin`` and the ``ros2 run`` launcher as processes: exit statuses, error lines,
+and the MCAP log they leave (complete after duration_s, SIGTERM and SIGINT).
+
+Each process runs on a random ROS domain, localhost only, with its ROS and rerun files in a
+temporary directory. Waits are loops on conditions with generous deadlines.
+"""
+from __future__ import annotations
+
+import os
+import random
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from conftest import REPO
+
+from drill_twin import interface as itf
+from drill_twin.recording import reader
+
+WAIT_S = 120.0
+DRILL_TWIN = str(Path(sys.executable).with_name('drill-twin'))
+
+
+@pytest.fixture(scope='module')
+def env(tmp_path_factory):
+    folder = tmp_path_factory.mktemp('ros_processes')
+    return dict(os.environ, ROS_DOMAIN_ID=str(random.SystemRandom().randint(1, 101)),
+                ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', RMW_IMPLEMENTATION='rmw_fastrtps_cpp',
+                ROS_LOG_DIR=str(folder / 'log'), XDG_CONFIG_HOME=str(folder / 'config'),
+                XDG_DATA_HOME=str(folder / 'data'), RERUN_TELEMETRY='0')
+
+
+def run(command: list[str], env: dict, timeout_s: float = WAIT_S) -> subprocess.CompletedProcess:
+    return subprocess.run(command, env=env, capture_output=True, text=True, timeout=timeout_s,
+                          stdin=subprocess.DEVNULL, cwd=REPO)
+
+
+def the_log(folder: Path) -> Path:
+    logs = list(folder.glob('*.mcap'))
+    assert len(logs) == 1, logs
+    return logs[0]
+
+
+def bit_stamps(path: Path) -> list[int]:
+    return [m.message.header.stamp.sec * 1_000_000_000 + m.message.header.stamp.nanosec
+            for m in reader.iter_messages(path, [itf.BIT_STATE], strict=True)]
+
+
+def assert_complete_fast_run(path: Path, duration_s: float) -> None:
+    """A complete, readable log of a fast run: the twin clock from 0 to duration_s."""
+    assert reader.is_complete(path)
+    stamps = bit_stamps(path)
+    assert stamps == list(range(10_000_000, int(duration_s * 1e9) + 1, 10_000_000))
+    rosout = [m.message.msg for m in reader.iter_messages(path, [itf.ROSOUT], strict=True)]
+    assert rosout[-1] == f'{duration_s:g} s simulated: stopping'
+    metadata = reader.read_metadata(path)['drill_twin']
+    assert metadata['fast'] == 'true' and 'config' in metadata
+
+
+# -- 10. the command line -------------------------------------------------------------------
+
+def test_cli_fast_run_leaves_a_log(env, tmp_path):
+    result = run([DRILL_TWIN, 'twin', '--duration', '1', '--fast', '--ensemble', '2',
+                  '--seed', '4', '--log-dir', str(tmp_path / 'logs')], env)
+    assert result.returncode == 0, result.stderr
+    assert 'Traceback' not in result.stderr
+    path = the_log(tmp_path / 'logs')
+    assert_complete_fast_run(path, 1.0)
+    metadata = reader.read_metadata(path)['drill_twin']
+    assert metadata['seed'] == '4' and metadata['ensemble_members'] == '2'
+
+
+def test_cli_bad_override_is_one_line_and_status_2(env, tmp_path):
+    result = run([DRILL_TWIN, 'twin', '--duration', '1', '--fast', '--set', 'foo=1',
+                  '--log-dir', str(tmp_path / 'logs')], env)
+    assert result.returncode == 2
+    assert result.stderr.splitlines() == ['drill-twin: --set: foo: unknown key']
+    assert not (tmp_path / 'logs').exists()
+
+
+# -- 9. unwritable log directory (exit) ------------------------------------------------------
+
+def test_unwritable_log_dir_with_on_log_error_exit(env, tmp_path):
+    """A directory under a regular file cannot be created, not even by root."""
+    blocker = tmp_path / 'a_file'
+    blocker.write_text('not a directory\n')
+    result = run([DRILL_TWIN, 'twin', '--duration', '1', '--fast', '--ensemble', '0',
+                  '--log-dir', str(blocker / 'logs'), '--ros-args', '-p',
+                  'on_log_error:=exit'], env)
+    assert result.returncode == 1
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1, lines
+    assert lines[0].startswith(f'drill-twin: cannot write the log {blocker}/logs/drill_twin_')
+    assert lines[0].endswith(': Not a directory (on_log_error: exit)')
+
+
+# -- 8. ros2 run launcher, signals -----------------------------------------------------------
+
+def test_ros2_run_launcher(env, tmp_path):
+    """``ros2 run drill_twin twin`` runs <prefix>/lib/drill_twin/twin, i.e. scripts/twin."""
+    launcher = REPO / 'scripts' / 'twin'
+    assert os.access(launcher, os.X_OK)
+    logs = tmp_path / 'logs'
+    result = run([sys.executable, str(launcher), '--ros-args', '-p', 'duration_s:=1.0',
+                  '-p', 'fast:=true', '-p', f'log_dir:={logs}', '-p', 'ensemble_members:=2'],
+                 env)
+    assert result.returncode == 0, result.stderr
+    assert_complete_fast_run(the_log(logs), 1.0)
+
+
+def _readable_messages(folder: Path) -> int:
+    """Bit-state messages readable so far from the (unfinished) log in ``folder``."""
+    logs = list(folder.glob('*.mcap'))
+    if not logs:
+        return 0
+    return sum(1 for _ in reader.iter_messages(logs[0], [itf.BIT_STATE]))
+
+
+@pytest.mark.parametrize('signal_number', [signal.SIGTERM, signal.SIGINT],
+                         ids=['SIGTERM', 'SIGINT'])
+def test_signal_completes_the_log(env, tmp_path, signal_number):
+    """Real time (100 Hz), stopped by a signal once its log holds messages: exit status 0,
+    no traceback, and a complete log stamped with the ROS time of the run."""
+    logs = tmp_path / 'logs'
+    stderr_path = tmp_path / 'stderr.txt'
+    started_ns = time.time_ns()
+    with open(stderr_path, 'w') as stderr:
+        process = subprocess.Popen([DRILL_TWIN, 'twin', '--ensemble', '2', '--log-dir',
+                                    str(logs)], env=env, cwd=REPO, stdin=subprocess.DEVNULL,
+                                   stdout=subprocess.DEVNULL, stderr=stderr)
+    try:
+        deadline = time.monotonic() + WAIT_S
+        while (seen := _readable_messages(logs)) == 0:
+            assert process.poll() is None, stderr_path.read_text()
+            assert time.monotonic() < deadline, 'no messages in the log'
+            time.sleep(0.2)
+        process.send_signal(signal_number)
+        status = process.wait(timeout=WAIT_S)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    stopped_ns = time.time_ns()
+    errors = stderr_path.read_text()
+    assert status == 0, errors
+    assert 'Traceback' not in errors and 'Error' not in errors
+    path = the_log(logs)
+    assert reader.is_complete(path)
+    stamps = bit_stamps(path)
+    assert len(stamps) >= seen
+    assert all(b - a == 10_000_000 for a, b in zip(stamps, stamps[1:]))
+    assert started_ns < stamps[0] and stamps[-1] < stopped_ns    # the ROS clock, real time
+    assert reader.read_metadata(path)['drill_twin']['fast'] == 'false'
+    topics = reader.topics(path)
+    assert {itf.BIT_STATE, itf.ENSEMBLE_MEAN, itf.DIAGNOSTICS, itf.ROSOUT} <= set(topics)
+
+
+SIGNAL_WHILE_STARTING = '''
+import os, signal, sys, time
+import rclpy
+from drill_twin.ros import twin_node
+
+where, name, log_dir = sys.argv[1:4]
+
+
+def interrupted(function):
+    """``function``, after a real signal to this process has shut rclpy's context down."""
+    def wrapper(*args, **kwargs):
+        os.kill(os.getpid(), getattr(signal, name))
+        deadline = time.monotonic() + 60
+        while rclpy.ok() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        return function(*args, **kwargs)
+    return wrapper
+
+
+if where == 'model':            # before anything of ROS is made but the node itself
+    twin_node.load_config = interrupted(twin_node.load_config)
+else:                           # after the log is opened
+    twin_node.TwinNode.create_timer = interrupted(twin_node.TwinNode.create_timer)
+sys.exit(twin_node.run(['drill-twin', '--ros-args', '-p', f'log_dir:={log_dir}',
+                        '-p', 'ensemble_members:=1']))
+'''
+
+
+@pytest.mark.parametrize('where', ['model', 'timer'])
+@pytest.mark.parametrize('name', ['SIGTERM', 'SIGINT'])
+def test_signal_while_starting(env, tmp_path, where, name):
+    """A signal between rclpy.init and the first spin (the moment chosen by wrapping one
+    call of the node's set-up): exit status 0, no traceback, no unfinished log."""
+    script = tmp_path / 'signal_while_starting.py'
+    script.write_text(SIGNAL_WHILE_STARTING)
+    logs = tmp_path / 'logs'
+    result = run([sys.executable, str(script), where, name, str(logs)], env)
+    assert result.returncode == 0, result.stderr
+    assert 'Traceback' not in result.stderr
+    for path in logs.glob('*.mcap'):
+        assert reader.is_complete(path)
+    assert (where == 'timer') == logs.is_dir()

@@ -1,0 +1,644 @@
+"""The twin node over real rclpy and FastDDS: the node and a probe node on one executor.
+
+Every test runs the node in fast mode (twin clock from 0, 10 ms a tick, /clock published)
+with a small ensemble. The probe subscribes with deep reliable queues and waits until every
+subscription is matched before the executor first spins, so it hears every tick from the
+first one. Waits are loops on conditions with generous deadlines, never fixed sleeps, and
+nothing asserts on wall-clock speed.
+"""
+from __future__ import annotations
+
+import math
+import os
+import random
+import subprocess
+import time
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from drill_twin import interface as itf
+
+STATIONS = ('x700m', 'x1590m')
+TICK_NS = 10_000_000                  # 100 Hz, 2 steps of 5 ms
+WAIT_S = 120.0                        # deadline of any wait (a loaded 2-core machine is slow)
+ENV = {'ROS_DOMAIN_ID': str(random.SystemRandom().randint(1, 101)),
+       'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST', 'RMW_IMPLEMENTATION': 'rmw_fastrtps_cpp',
+       'RERUN_TELEMETRY': '0'}
+
+
+# -- fixtures and helpers ------------------------------------------------------------------------
+
+@pytest.fixture(scope='module')
+def ros(tmp_path_factory):
+    """rclpy initialised on a random domain, localhost only, logs and rerun ids in tmp.
+
+    BLAS is single-threaded as in ``drill_twin.ros.twin_node.run`` (set after the model's
+    libraries are loaded, or threadpoolctl cannot see them).
+    """
+    folder = tmp_path_factory.mktemp('ros')
+    extra = {'ROS_LOG_DIR': str(folder / 'log'), 'XDG_CONFIG_HOME': str(folder / 'config'),
+             'XDG_DATA_HOME': str(folder / 'data')}
+    saved = {key: os.environ.get(key) for key in [*ENV, *extra]}
+    os.environ.update(ENV, **extra)
+    import rclpy
+    from threadpoolctl import threadpool_limits
+
+    import drill_twin.ros.twin_node  # noqa: F401  (loads numpy and scipy's BLAS)
+
+    rclpy.init()
+    try:
+        with threadpool_limits(limits=1, user_api='blas'):
+            yield rclpy
+    finally:
+        rclpy.try_shutdown()
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
+
+
+def stamp_ns(message) -> int:
+    stamp = message.header.stamp
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
+class Twin:
+    """A TwinNode (fast, small ensemble, logging to ``log_dir``) and a probe on one executor.
+
+    The probe records every message of every twin topic and of /rosout in ``received``, and
+    holds publishers of the two commands.
+    """
+
+    def __init__(self, log_dir: Path, **parameters):
+        import rclpy
+        from rcl_interfaces.msg import Log
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.parameter import Parameter
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+        from std_msgs.msg import Float64
+
+        from drill_twin.recording.qos import rclpy_qos_profile
+        from drill_twin.ros.twin_node import TwinNode
+
+        values = {'fast': True, 'log_dir': str(log_dir), 'ensemble_members': 4, 'seed': 3,
+                  **parameters}
+        self.node = TwinNode(parameter_overrides=[Parameter(k, value=v)
+                                                  for k, v in values.items()])
+        self.probe = rclpy.create_node('twin_probe')
+        self.received = defaultdict(list)
+        deep = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE)
+        self._subscriptions = []
+        for topic, (type_, _) in self.node._published_topics().items():
+            qos = deep
+            if topic == itf.CLOCK:
+                qos = QoSProfile(depth=5000, reliability=ReliabilityPolicy.BEST_EFFORT)
+            self._subscriptions.append(self.probe.create_subscription(
+                type_, topic, lambda message, t=topic: self.received[t].append(message), qos))
+        rosout_qos = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE,
+                                durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.probe.create_subscription(Log, itf.ROSOUT, self.received[itf.ROSOUT].append,
+                                       rosout_qos)
+        command_qos = rclpy_qos_profile(itf.STATE_QOS)
+        self.commands = {topic: self.probe.create_publisher(Float64, topic, command_qos)
+                         for topic in (itf.CMD_TOP_DRIVE_SPEED, itf.CMD_HOOK_LOAD)}
+        self.executor = SingleThreadedExecutor()
+        self.executor.add_node(self.node)
+        self.executor.add_node(self.probe)
+        self._wait_for_discovery()
+
+    def _wait_for_discovery(self) -> None:
+        """Wait (without spinning, so the twin has not ticked yet) until both ends of every
+        twin topic and command are matched."""
+        ends = ([s.get_publisher_count for s in self._subscriptions]
+                + [self.node._outputs[s.topic_name].get_subscription_count
+                   for s in self._subscriptions]
+                + [p.get_subscription_count for p in self.commands.values()])
+        deadline = time.monotonic() + WAIT_S
+        while not all(count() > 0 for count in ends):
+            assert time.monotonic() < deadline, 'DDS discovery did not complete'
+            time.sleep(0.01)
+
+    # -- running -------------------------------------------------------------------------
+    def spin_until(self, condition, what: str, timeout_s: float = WAIT_S) -> None:
+        deadline = time.monotonic() + timeout_s
+        while not condition():
+            assert time.monotonic() < deadline, f'timed out waiting for {what}'
+            self.executor.spin_once(timeout_sec=0.1)
+
+    def last_stamp_s(self, topic: str = itf.BIT_STATE) -> float:
+        messages = self.received[topic]
+        return stamp_ns(messages[-1]) * 1e-9 if messages else -1.0
+
+    def spin_to(self, twin_time_s: float) -> None:
+        """Spin until the probe has heard the bit state of twin time ``twin_time_s``."""
+        self.spin_until(lambda: self.last_stamp_s() >= twin_time_s - 1e-6,
+                        f'twin time {twin_time_s} s')
+
+    def command(self, topic: str, value: float) -> None:
+        from std_msgs.msg import Float64
+
+        self.commands[topic].publish(Float64(data=float(value)))
+
+    # -- what the probe heard -------------------------------------------------------------
+    def statuses(self, name: str | None = None):
+        """Every DiagnosticStatus heard (optionally only those named ``name``)."""
+        return [s for array in self.received[itf.DIAGNOSTICS] for s in array.status
+                if name is None or s.name == name]
+
+    def rosout(self, level: int | None = None, containing: str = ''):
+        """The twin's /rosout records (optionally of one level, containing some text)."""
+        return [m for m in self.received[itf.ROSOUT]
+                if m.name == itf.NODE_NAME and (level is None or m.level == level)
+                and containing in m.msg]
+
+    def series(self, topic: str, field: str, index: int) -> tuple[np.ndarray, np.ndarray]:
+        """(stamps in s, values) of one JointState field of one joint."""
+        messages = self.received[topic]
+        return (np.array([stamp_ns(m) * 1e-9 for m in messages]),
+                np.array([getattr(m, field)[index] for m in messages]))
+
+    def close(self) -> None:
+        self.node.close()
+        self.executor.shutdown()
+        self.probe.destroy_node()
+        self.node.destroy_node()
+
+
+@pytest.fixture
+def twin_factory(ros, tmp_path):
+    """Make Twin sessions (closed at the end of the test)."""
+    sessions = []
+
+    def make(**parameters):
+        parameters.setdefault('log_dir', tmp_path / 'logs')
+        session = Twin(**parameters)
+        sessions.append(session)
+        return session
+
+    yield make
+    for session in sessions:
+        session.close()
+
+
+DURATION_S = 3.0
+COMMAND_AT_S = 1.0
+SPEED_COMMAND = 6.0                   # rad/s
+HOOK_STEP_N = -10e3
+
+
+@pytest.fixture(scope='module')
+def recorded(ros, tmp_path_factory):
+    """A 3 s fast run (4 members) heard by the probe and logged, with a valid speed and
+    hook-load command and one rejected command at about 1 s."""
+    folder = tmp_path_factory.mktemp('recorded')
+    twin = Twin(folder / 'logs', duration_s=DURATION_S, seed=5)
+    try:
+        twin.spin_to(COMMAND_AT_S)
+        hook_before = twin.received[itf.TOP_STATE][-1].effort[1]
+        sent_at_ns = twin.node.twin_time_ns()
+        twin.command(itf.CMD_TOP_DRIVE_SPEED, math.nan)                   # rejected
+        twin.command(itf.CMD_TOP_DRIVE_SPEED, SPEED_COMMAND)
+        twin.command(itf.CMD_HOOK_LOAD, hook_before + HOOK_STEP_N)
+        twin.spin_until(lambda: twin.node.done.done(), 'duration_s')
+        final_ns = twin.node.twin_time_ns()
+        # Drain what the last tick published (rosout's stop line included).
+        twin.spin_until(lambda: stamp_ns(twin.received[itf.BIT_STATE][-1]) == final_ns
+                        and any('stopping' in m.msg for m in twin.rosout()), 'the last tick')
+        twin.node.close()
+        log_path = twin.node.log.path
+        yield {'twin': twin, 'received': twin.received, 'log': log_path,
+               'final_ns': final_ns, 'sent_at_ns': sent_at_ns, 'hook_before': hook_before,
+               'stations_m': list(twin.node.stations_m), 'config': twin.node.config}
+    finally:
+        twin.close()
+
+
+# -- 1. commands -----------------------------------------------------------------------------
+
+def test_commands_move_the_bit(twin_factory):
+    """A top-drive speed of 10 rad/s and a hook load 30 kN lower, sent at about 0.2 s: the
+    top drive ramps at 2 rad/s^2 to 10 rad/s, the bit follows (its mean speed doubles), and
+    the mean WOB becomes more compressive by about the hook-load change."""
+    twin = twin_factory()
+    twin.spin_to(0.2)
+    speed_0 = twin.received[itf.TOP_STATE][-1].velocity[0]
+    hook_0 = twin.received[itf.TOP_STATE][-1].effort[1]
+    twin.command(itf.CMD_TOP_DRIVE_SPEED, 10.0)
+    twin.command(itf.CMD_HOOK_LOAD, hook_0 - 30e3)
+    twin.spin_to(6.0)
+
+    t, top = twin.series(itf.TOP_STATE, 'velocity', 0)
+    _, hook = twin.series(itf.TOP_STATE, 'effort', 1)
+    assert np.all(np.diff(t) > 0)
+    start = np.flatnonzero(top > speed_0 + 1e-9)[0]          # first tick of the ramp
+    assert t[start] < 1.5, 'the speed command took too long to arrive'
+    assert np.all(top[:start] == speed_0)
+    ramping = (top > speed_0 + 1e-9) & (top < 10.0 - 1e-9)
+    slopes = np.diff(top)[ramping[1:] & ramping[:-1]] / np.diff(t)[ramping[1:] & ramping[:-1]]
+    np.testing.assert_allclose(slopes, 2.0, rtol=1e-6)       # 2 rad/s^2 while ramping
+    reached = np.flatnonzero(top >= 10.0 - 1e-9)[0]
+    assert t[reached] - t[start] == pytest.approx((10.0 - speed_0) / 2.0, abs=0.03)
+    np.testing.assert_allclose(top[reached:], 10.0, rtol=0, atol=1e-12)
+    applied = np.flatnonzero(hook != hook_0)[0]
+    np.testing.assert_allclose(hook[applied:], hook_0 - 30e3, rtol=1e-12)
+
+    t, bit_speed = twin.series(itf.BIT_STATE, 'velocity', 1)
+    # Uncommanded, the mean bit speed over (2, 6] s is ~5.8 rad/s (stick-slip around the
+    # initial 5.2 rad/s); commanded to 10 rad/s it is ~11.9.
+    late = (t > 2.0) & (t <= 6.0)
+    assert 8.5 < np.mean(bit_speed[late]) < 16.0
+    t, wob = twin.series(itf.BIT_STATE, 'effort', 0)
+    static_wob = twin.node.engine.simulator.system.model.prestress.static_weight_on_bit_n
+    assert static_wob == pytest.approx(-1e5, rel=0.01)
+    after = (t > 1.0) & (t <= 6.0)                        # ~5 axial periods
+    change = np.mean(wob[after]) - static_wob             # stationary: WOB = -(W - H)
+    assert change == pytest.approx(-30e3, rel=0.15)
+
+
+# -- 2. messages -----------------------------------------------------------------------------
+
+def _finite(values) -> bool:
+    return bool(np.all(np.isfinite(np.asarray(values, dtype=float))))
+
+
+def test_joint_states_are_well_formed(recorded):
+    received = recorded['received']
+    for topic, frame, joints in ((itf.BIT_STATE, itf.FRAME_BIT, [itf.BIT_AXIAL, itf.BIT_ROTATION]),
+                                 (itf.TOP_STATE, itf.FRAME_TOP, [itf.TOP_DRIVE, itf.HOOK]),
+                                 (itf.ENSEMBLE_MEAN, itf.FRAME_BIT, [itf.BIT_AXIAL,
+                                                                     itf.BIT_ROTATION])):
+        assert received[topic], topic
+        for message in received[topic]:
+            assert list(message.name) == joints
+            assert message.header.frame_id == frame
+            for field in (message.position, message.velocity, message.effort):
+                assert len(field) == 2 and _finite(field)
+
+    bit = received[itf.BIT_STATE]
+    depth = np.array([m.position[0] for m in bit])
+    rop = np.array([m.velocity[0] for m in bit])
+    wob = np.array([m.effort[0] for m in bit])
+    tob = np.array([m.effort[1] for m in bit])
+    assert np.all((depth > 1599.9) & (depth < 1601.0)) and depth[-1] > depth[0]
+    elapsed = (stamp_ns(bit[-1]) - stamp_ns(bit[0])) * 1e-9
+    assert 1e-4 < np.mean(rop) < 1e-2                        # ~mm/s
+    assert np.mean(rop[1:]) * elapsed == pytest.approx(depth[-1] - depth[0], rel=0.05)
+    assert np.all(wob <= 0) and -2e5 < np.mean(wob) < -5e4
+    assert np.all(tob <= 0) and np.mean(tob) < 0
+    top = received[itf.TOP_STATE]
+    assert top[0].velocity[0] == pytest.approx(0.83 * 2 * math.pi)      # top_drive_speed_hz
+    assert 5e5 < top[0].effort[1] < 5e6                                  # hook load (N)
+
+
+def test_stamps_follow_the_twin_clock(recorded):
+    """Every stamped topic carries the same stamps: 10 ms, 20 ms, ... up to the end of the
+    run, one per tick; /clock says the same times."""
+    received, final_ns = recorded['received'], recorded['final_ns']
+    expected = list(range(TICK_NS, final_ns + 1, TICK_NS))
+    assert final_ns == int(DURATION_S * 1e9)
+    per_tick = [itf.BIT_STATE, itf.BIT_WRENCH, itf.TOP_STATE]
+    for station in STATIONS:
+        per_tick += [f'/drill_twin/vibration/{station}/imu',
+                     f'/drill_twin/vibration/{station}/displacement']
+    for topic in per_tick:
+        assert [stamp_ns(m) for m in received[topic]] == expected, topic
+    diagnostics = [stamp_ns(m) for m in received[itf.DIAGNOSTICS]]
+    assert diagnostics == sorted(diagnostics) and set(diagnostics) <= set(expected)
+    clock = [m.clock.sec * 1_000_000_000 + m.clock.nanosec for m in received[itf.CLOCK]]
+    assert len(clock) > 0.5 * len(expected)                 # best effort: most of them
+    assert clock == sorted(set(clock)) and set(clock) <= set(expected)
+
+
+def test_wrench_stations_contacts_kpis(recorded):
+    received = recorded['received']
+    bit = {stamp_ns(m): m for m in received[itf.BIT_STATE]}
+    for wrench in received[itf.BIT_WRENCH]:
+        assert wrench.header.frame_id == itf.FRAME_BIT
+        state = bit[stamp_ns(wrench)]
+        assert wrench.wrench.force.x == state.effort[0]
+        assert wrench.wrench.torque.x == state.effort[1]
+        assert (wrench.wrench.force.y, wrench.wrench.force.z) == (0.0, 0.0)
+    for station in STATIONS:
+        imu = received[f'/drill_twin/vibration/{station}/imu']
+        assert imu and all(m.header.frame_id == f'drill_twin/{station}' for m in imu)
+        for m in imu:
+            assert m.orientation_covariance[0] == -1.0
+            assert _finite([m.linear_acceleration.x, m.linear_acceleration.y,
+                            m.linear_acceleration.z, m.angular_velocity.x,
+                            m.angular_velocity.y, m.angular_velocity.z])
+        displacement = received[f'/drill_twin/vibration/{station}/displacement']
+        assert all(m.header.frame_id == f'drill_twin/{station}' for m in displacement)
+        assert _finite([[m.vector.x, m.vector.y, m.vector.z] for m in displacement])
+        spin = np.array([m.angular_velocity.x for m in imu])
+        assert 0 < np.mean(spin) < 20                         # the string turns forwards
+    contacts = received[itf.CONTACT_FORCES]
+    assert contacts
+    for m in contacts:
+        assert len(m.data) == 57 and _finite(m.data) and min(m.data) >= 0.0
+        assert m.layout.dim[0].label == 'node' and m.layout.dim[0].size == 57
+    for topic in (itf.KPI_STICK_SLIP, itf.KPI_MSE, itf.KPI_ROP):
+        values = [m.data for m in received[topic]]
+        assert len(values) >= DURATION_S * 10 - 1 and _finite(values), topic
+    assert all(0 < m.data < 40 for m in received[itf.KPI_ROP][1:])      # m/h
+    assert all(m.data >= 0 for m in received[itf.KPI_STICK_SLIP])
+    health = [s for m in received[itf.DIAGNOSTICS] for s in m.status
+              if s.name == 'drill_twin: twin health']
+    assert len(health) >= DURATION_S - 1
+    values = {kv.key: kv.value for kv in health[-1].values}
+    assert values['members'] == '5' and values['resets'] == '0'
+    assert values['rejected_commands'] == '1'
+    assert float(values['real_time_factor']) > 0 and float(values['tick_time_ms']) > 0
+
+
+# -- 3. ensemble bounds ----------------------------------------------------------------------
+
+def test_ensemble_bounds_contain_the_mean(recorded):
+    received = recorded['received']
+    by_stamp = defaultdict(dict)
+    for kind, topic in (('mean', itf.ENSEMBLE_MEAN), ('lower', itf.ENSEMBLE_LOWER),
+                        ('upper', itf.ENSEMBLE_UPPER)):
+        for m in received[topic]:
+            by_stamp[stamp_ns(m)][kind] = m
+    stamps = sorted(by_stamp)
+    assert all(len(by_stamp[s]) == 3 for s in stamps), 'a mean without its bounds'
+    assert len(stamps) >= DURATION_S * 10 - 1
+    assert max(np.diff([0] + stamps)) <= 100_000_000             # >= 10 Hz of twin time
+    for s in stamps:
+        triple = by_stamp[s]
+        for field in ('position', 'velocity', 'effort'):
+            low, mean, up = (np.array(getattr(triple[k], field))
+                             for k in ('lower', 'mean', 'upper'))
+            slack = 8 * np.finfo(float).eps * np.abs(mean)    # np.mean rounds
+            assert np.all(low <= mean + slack) and np.all(mean <= up + slack), (s, field)
+    spread = [by_stamp[s]['upper'].velocity[1] - by_stamp[s]['lower'].velocity[1]
+              for s in stamps]
+    assert max(spread) > 0                                    # the members do differ
+
+
+# -- 4. bad commands -------------------------------------------------------------------------
+
+BAD_COMMANDS = [(itf.CMD_TOP_DRIVE_SPEED, math.nan, 'top-drive speed', 'not a finite'),
+                (itf.CMD_TOP_DRIVE_SPEED, math.inf, 'top-drive speed', 'not a finite'),
+                (itf.CMD_TOP_DRIVE_SPEED, -1.0, 'top-drive speed', 'outside [0, 30]'),
+                (itf.CMD_HOOK_LOAD, 6.0e6, 'hook load', 'outside [0, 5e+06]'),
+                (itf.CMD_HOOK_LOAD, -math.inf, 'hook load', 'not a finite')]
+
+
+def test_bad_commands_are_rejected(twin_factory):
+    from rcl_interfaces.msg import Log
+    from diagnostic_msgs.msg import DiagnosticStatus
+
+    twin = twin_factory()
+    twin.spin_to(0.1)
+    hook = twin.received[itf.TOP_STATE][-1].effort[1] - 10e3
+    twin.command(itf.CMD_TOP_DRIVE_SPEED, 6.0)
+    twin.command(itf.CMD_HOOK_LOAD, hook)
+    twin.spin_until(lambda: twin.node.engine.hook_load_command == hook, 'the valid commands')
+    for k, (topic, value, what, reason) in enumerate(BAD_COMMANDS, start=1):
+        twin.command(topic, value)
+        twin.spin_until(lambda: len(twin.statuses('drill_twin: command rejected')) >= k
+                        and len(twin.rosout(Log.WARN, '/drill_twin/cmd/')) >= k,
+                        f'the rejection of {value}')
+        status = twin.statuses('drill_twin: command rejected')[-1]
+        values = {kv.key: kv.value for kv in status.values}
+        assert status.level == DiagnosticStatus.WARN
+        assert values['command'] == what and float(values['value']) == pytest.approx(value,
+                                                                                    nan_ok=True)
+        assert what in status.message and reason in status.message
+        line = twin.rosout(Log.WARN, '/drill_twin/cmd/')[-1].msg
+        assert line.startswith(f'{topic}: {what} command') and reason in line
+        assert 'the previous command stays' in line
+    # Still running, still on the last valid commands.
+    rejected_at = twin.last_stamp_s()
+    twin.spin_to(rejected_at + 2.0)
+    assert twin.node.engine.top_drive_speed_command == 6.0
+    assert twin.node.engine.hook_load_command == hook
+    t, top = twin.series(itf.TOP_STATE, 'velocity', 0)
+    assert np.all(top[t > rejected_at + 1.0] == pytest.approx(6.0, abs=1e-12))
+    _, hooks = twin.series(itf.TOP_STATE, 'effort', 1)
+    assert np.all(hooks[t > rejected_at] == hook)
+    _, bit_speed = twin.series(itf.BIT_STATE, 'velocity', 1)
+    assert _finite(bit_speed)
+    health = twin.statuses('drill_twin: twin health')[-1]
+    assert {kv.key: kv.value for kv in health.values}['rejected_commands'] == str(
+        len(BAD_COMMANDS))
+
+
+# -- 5. parameters at run time ---------------------------------------------------------------
+
+def _set_parameters(twin, **values):
+    """Set parameters through /drill_twin/set_parameters; returns [(successful, reason)]."""
+    from rcl_interfaces.srv import SetParameters
+    from rclpy.parameter import Parameter
+
+    client = twin.probe.create_client(SetParameters, f'/{itf.NODE_NAME}/set_parameters')
+    try:
+        assert client.wait_for_service(timeout_sec=WAIT_S)
+        request = SetParameters.Request(parameters=[Parameter(k, value=v).to_parameter_msg()
+                                                    for k, v in values.items()])
+        future = client.call_async(request)
+        twin.spin_until(future.done, 'the parameter service')
+        return [(r.successful, r.reason) for r in future.result().results]
+    finally:
+        twin.probe.destroy_client(client)
+
+
+def test_safe_parameters_change_and_take_effect(twin_factory):
+    twin = twin_factory()
+    twin.spin_to(0.1)
+    results = _set_parameters(twin, kpi_window_s=2.0, top_drive_speed_max_rad_per_s=6.0,
+                              ensemble_rate_hz=20.0)
+    assert results == [(True, '')] * 3
+    node = twin.node
+    assert node.get_parameter('kpi_window_s').value == 2.0
+    assert node.engine.kpi_window_s == 2.0
+    assert node.engine.limits.top_drive_speed_max_rad_per_s == 6.0
+    # The new limit: 8 rad/s is now refused, 5.5 accepted.
+    twin.command(itf.CMD_TOP_DRIVE_SPEED, 8.0)
+    twin.spin_until(lambda: twin.statuses('drill_twin: command rejected'), 'the rejection')
+    assert 'outside [0, 6] rad/s' in twin.statuses('drill_twin: command rejected')[0].message
+    twin.command(itf.CMD_TOP_DRIVE_SPEED, 5.5)
+    twin.spin_until(lambda: node.engine.top_drive_speed_command == 5.5, 'the accepted command')
+    # The KPI window now spans 2 s of twin time, the ensemble comes at 20 Hz.
+    since = twin.last_stamp_s()
+    twin.spin_to(since + 2.5)
+    window = np.array(node.engine._window)
+    assert window[-1, 0] - window[0, 0] <= 2.0 + 1e-9
+    stamps = [stamp_ns(m) * 1e-9 for m in twin.received[itf.ENSEMBLE_MEAN]]
+    late = np.diff([s for s in stamps if s > since + 0.1])
+    np.testing.assert_allclose(late, 0.05, atol=1e-9)
+
+
+def test_unsafe_and_invalid_parameters_are_refused(twin_factory):
+    from drill_twin.ros.parameters import unsafe_change_reason
+
+    twin = twin_factory()
+    twin.spin_to(0.05)
+    unsafe = {'ensemble_members': 8, 'seed': 9, 'fast': False, 'model_config': 'other.yaml',
+              'rate_hz': 50.0, 'log_dir': '/tmp/elsewhere'}
+    results = _set_parameters(twin, **unsafe)
+    assert results == [(False, unsafe_change_reason(name)) for name in unsafe]
+    for name, value in unsafe.items():
+        assert twin.node.get_parameter(name).value != value
+    (ok, reason), = _set_parameters(twin, on_log_error='bogus')
+    assert not ok and reason == 'on_log_error must be one of continue, exit'
+    (ok, reason), = _set_parameters(twin, hook_load_min_n=6e6)        # above the max, 5e6
+    assert not ok and reason == 'hook_load_min_n must not exceed hook_load_max_n'
+    (ok, reason), = _set_parameters(twin, top_drive_speed_max_rad_per_s=500.0)
+    assert not ok                                           # outside the declared range
+    assert twin.node.engine.limits.top_drive_speed_max_rad_per_s == 30.0
+    twin.spin_to(twin.last_stamp_s() + 0.1)                  # and it runs on
+
+
+# -- 6. numerical divergence -----------------------------------------------------------------
+
+def test_divergence_is_reported_and_nothing_garbage_published(twin_factory):
+    """One Newton iteration with a tolerance of 1e-14: every step fails to converge, the
+    batch is restarted from its safe state at every attempt."""
+    from diagnostic_msgs.msg import DiagnosticStatus
+    from rcl_interfaces.msg import Log
+
+    twin = twin_factory(model_overrides=['integration.max_iterations=1',
+                                         'integration.tolerance=1e-14'])
+    twin.spin_until(lambda: len(twin.received[itf.BIT_STATE]) >= 5
+                    and twin.statuses('drill_twin: diverged')
+                    and twin.rosout(Log.ERROR)
+                    and twin.statuses('drill_twin: twin health'), 'divergence reports')
+    status = twin.statuses('drill_twin: diverged')[0]
+    assert status.level == DiagnosticStatus.ERROR
+    assert 'diverged' in status.message and 'restarted from a safe state' in status.message
+    assert 'diverged' in twin.rosout(Log.ERROR)[0].msg
+    health = {kv.key: kv.value for kv in twin.statuses('drill_twin: twin health')[-1].values}
+    assert int(health['resets']) > 0
+    # It keeps publishing, and only finite numbers.
+    count = len(twin.received[itf.BIT_STATE])
+    twin.spin_until(lambda: len(twin.received[itf.BIT_STATE]) >= count + 5, 'more ticks')
+    for topic in (itf.BIT_STATE, itf.TOP_STATE, itf.ENSEMBLE_MEAN, itf.ENSEMBLE_LOWER,
+                  itf.ENSEMBLE_UPPER):
+        for m in twin.received[topic]:
+            assert _finite([*m.position, *m.velocity, *m.effort]), topic
+    assert _finite([m.wrench.force.x for m in twin.received[itf.BIT_WRENCH]])
+    assert _finite([v for m in twin.received[itf.CONTACT_FORCES] for v in m.data])
+    for topic in (itf.KPI_STICK_SLIP, itf.KPI_MSE, itf.KPI_ROP):
+        assert _finite([m.data for m in twin.received[topic]])
+    stamps = [stamp_ns(m) for m in twin.received[itf.BIT_STATE]]
+    assert stamps == sorted(stamps)
+    depth = [m.position[0] for m in twin.received[itf.BIT_STATE]]
+    assert all(1599.9 < d < 1600.1 for d in depth)
+
+
+# -- 9. unwritable log directory (continue) --------------------------------------------------
+
+def test_unwritable_log_dir_runs_on_without_a_log(twin_factory, tmp_path):
+    from rcl_interfaces.msg import Log
+
+    blocker = tmp_path / 'a_file'
+    blocker.write_text('not a directory\n')
+    twin = twin_factory(log_dir=blocker / 'logs', on_log_error='continue')
+    assert twin.node.log is None
+    twin.spin_until(lambda: len(twin.received[itf.BIT_STATE]) >= 20
+                    and twin.statuses('drill_twin: twin health')
+                    and twin.rosout(Log.ERROR), 'ticks without a log')
+    errors = [m.msg for m in twin.rosout(Log.ERROR)]
+    assert len(errors) == 1 and errors[0].startswith(f'cannot write the log {blocker}/logs/')
+    assert 'running without a log (on_log_error: continue)' in errors[0]
+    health = {kv.key: kv.value for kv in twin.statuses('drill_twin: twin health')[-1].values}
+    assert health['log'] == 'none'
+    assert not list(tmp_path.rglob('*.mcap'))
+
+
+# -- 7. the MCAP log -------------------------------------------------------------------------
+
+def _stamp_of(message) -> int:
+    return message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec
+
+
+def test_log_is_complete_and_equal_to_what_was_heard(recorded):
+    from mcap_ros2.reader import read_ros2_messages
+
+    from drill_twin.recording import reader
+
+    path, received = recorded['log'], recorded['received']
+    assert reader.is_complete(path)
+    logged = defaultdict(list)
+    for item in read_ros2_messages(str(path)):
+        logged[item.channel.topic].append((item.log_time_ns, item.ros_msg))
+    expected_topics = set(recorded['twin'].node._published_topics()) | {
+        itf.CMD_TOP_DRIVE_SPEED, itf.CMD_HOOK_LOAD, itf.ROSOUT}
+    assert set(logged) == expected_topics
+    for topic in recorded['twin'].node._published_topics():
+        if topic != itf.CLOCK:            # best effort to the probe: it may miss some
+            assert len(logged[topic]) == len(received[topic]), topic
+
+    heard = {stamp_ns(m): m for m in received[itf.BIT_STATE]}
+    bit = logged[itf.BIT_STATE]
+    assert len(bit) == len(heard) and all(t == _stamp_of(m) for t, m in bit)
+    for _, m in bit[::37]:
+        other = heard[_stamp_of(m)]
+        assert list(m.name) == list(other.name)
+        for field in ('position', 'velocity', 'effort'):
+            assert list(getattr(m, field)) == list(getattr(other, field))
+    times = [t for topic in logged for t, _ in logged[topic]]
+    assert max(times) == recorded['final_ns']
+
+    # The accepted commands (not the NaN), at the time they took effect: the top state of
+    # that time is the last one before the ramp, the next one 2 steps x 0.01 rad/s faster.
+    (speed_at, speed), = logged[itf.CMD_TOP_DRIVE_SPEED]
+    (hook_at, hook), = logged[itf.CMD_HOOK_LOAD]
+    assert speed.data == SPEED_COMMAND and hook.data == recorded['hook_before'] + HOOK_STEP_N
+    sent = recorded['sent_at_ns']
+    assert sent <= speed_at < sent + 10 ** 9 and sent <= hook_at < sent + 10 ** 9
+    top = {stamp_ns(m): m for m in received[itf.TOP_STATE]}
+    v0 = top[TICK_NS].velocity[0]
+    assert top[speed_at].velocity[0] == v0
+    assert top[speed_at + TICK_NS].velocity[0] == pytest.approx(v0 + 2 * 0.005 * 2.0,
+                                                                abs=1e-12)
+    assert top[hook_at].effort[1] == recorded['hook_before']
+    assert top[hook_at + TICK_NS].effort[1] == hook.data
+
+    rosout = [m for _, m in logged[itf.ROSOUT]]
+    assert rosout[0].msg.startswith('drill_twin ') and 'logging to' in rosout[0].msg
+    assert any(m.level == 30 and 'not a finite number' in m.msg for m in rosout)
+    assert rosout[-1].msg == f'{DURATION_S:g} s simulated: stopping'
+    assert [m.msg for m in rosout] == [m.msg for m in recorded['twin'].rosout()]
+
+
+def test_log_metadata(recorded):
+    from drill_twin.config.loader import build_config
+    from drill_twin.recording import reader
+
+    metadata = reader.read_metadata(recorded['log'])['drill_twin']
+    assert metadata['seed'] == '5'
+    assert metadata['fast'] == 'true' and metadata['ensemble_members'] == '4'
+    assert build_config(yaml.safe_load(metadata['config'])) == recorded['config']
+
+
+def _rrd_entities(rrd: Path) -> set[str]:
+    """Entity paths of an .rrd, listed by ``rerun rrd print`` (as test_recording_rerun)."""
+    import re
+
+    from drill_twin.recording.rerun_view import rerun_executable
+
+    line = re.compile(r'^Chunk\(\S+\) with \d+ rows \([^)]*\) - (\S+) - data columns: ')
+    result = subprocess.run([rerun_executable(), 'rrd', 'print', str(rrd)], capture_output=True,
+                            text=True, check=True, timeout=WAIT_S, env=dict(os.environ))
+    return {m.group(1) for m in map(line.match, result.stdout.splitlines()) if m}
+
+
+def test_rerun_loads_the_log(recorded, tmp_path):
+    from drill_twin.recording.rerun_view import joint_entity, save_rrd
+
+    rrd = save_rrd(recorded['log'], tmp_path / 'run.rrd')
+    entities = _rrd_entities(rrd)
+    expected = set(recorded['twin'].node._published_topics()) | {
+        itf.CMD_TOP_DRIVE_SPEED, itf.CMD_HOOK_LOAD, itf.ROSOUT}
+    for topic in (itf.BIT_STATE, itf.TOP_STATE, itf.ENSEMBLE_MEAN, itf.ENSEMBLE_LOWER,
+                  itf.ENSEMBLE_UPPER):
+        expected |= {joint_entity(topic, f) for f in ('position', 'velocity', 'effort')}
+    assert expected <= entities, sorted(expected - entities)
+
