@@ -222,6 +222,9 @@ class TwinNode(Node):
             self._publish_health(snapshot, now)
         if self.fast:
             self._publish(itf.CLOCK, messages.clock(now), now)
+        if self.log and not self.log.open:          # a write failed (disk full, ...)
+            error, self.log = self.log.error, None
+            self._report('error', error or 'the log was closed; the twin runs on without a log')
         duration = self.params['duration_s']
         if duration > 0 and self.engine.time_s >= duration - 0.5 * self.engine.dt:
             self._report('info', f'{duration:g} s simulated: stopping')
