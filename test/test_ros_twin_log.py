@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import os
 import random
+import re
+import resource
 import signal
 import subprocess
 import sys
@@ -47,6 +49,12 @@ def the_log(folder: Path) -> Path:
 def bit_stamps(path: Path) -> list[int]:
     return [m.message.header.stamp.sec * 1_000_000_000 + m.message.header.stamp.nanosec
             for m in reader.iter_messages(path, [itf.BIT_STATE], strict=True)]
+
+
+def bit_stamps_readable(path: Path) -> list[int]:
+    """Bit-state stamps of the readable part of a log cut short."""
+    return [m.message.header.stamp.sec * 1_000_000_000 + m.message.header.stamp.nanosec
+            for m in reader.iter_messages(path, [itf.BIT_STATE])]
 
 
 def assert_complete_fast_run(path: Path, duration_s: float) -> None:
@@ -95,6 +103,32 @@ def test_unwritable_log_dir_with_on_log_error_exit(env, tmp_path):
     assert len(lines) == 1, lines
     assert lines[0].startswith(f'drill-twin: cannot write the log {blocker}/logs/drill_twin_')
     assert lines[0].endswith(': Not a directory (on_log_error: exit)')
+
+
+def test_log_write_failure_mid_run(env, tmp_path):
+    """The log hits the file-size limit (as a full disk would) after ~0.5 s: the twin runs
+    to the end, says so once as an ERROR through its ROS logger (so on /rosout), and leaves
+    the part it wrote readable. (Python ignores SIGXFSZ, so the write raises EFBIG.)"""
+    limit = 150_000
+
+    def limit_file_size():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    logs = tmp_path / 'logs'
+    result = subprocess.run([DRILL_TWIN, 'twin', '--duration', '2', '--fast', '--ensemble', '2',
+                             '--log-dir', str(logs)], env=env, capture_output=True, text=True,
+                            timeout=WAIT_S, stdin=subprocess.DEVNULL, cwd=REPO,
+                            preexec_fn=limit_file_size)
+    assert result.returncode == 0, result.stderr
+    errors = [line for line in result.stderr.splitlines() if line.startswith('[ERROR]')]
+    assert len(errors) == 1, result.stderr
+    assert re.fullmatch(r'\[ERROR\] \[[0-9.]+\] \[drill_twin\]: writing \S+\.mcap failed '
+                        r'\(\[Errno 27\] File too large\); the twin runs on without a log',
+                        errors[0]), errors[0]
+    assert result.stderr.splitlines()[-1].endswith('2 s simulated: stopping')
+    path = the_log(logs)
+    assert path.stat().st_size <= limit and not reader.is_complete(path)
+    assert len(bit_stamps_readable(path)) > 0
 
 
 # -- 8. ros2 run launcher, signals -----------------------------------------------------------

@@ -532,31 +532,7 @@ def test_divergence_is_reported_and_nothing_garbage_published(twin_factory):
     assert all(1599.9 < d < 1600.1 for d in depth)
 
 
-# -- 9. unwritable log directory (continue) --------------------------------------------------
-
-def test_unwritable_log_dir_runs_on_without_a_log(twin_factory, tmp_path):
-    from rcl_interfaces.msg import Log
-
-    blocker = tmp_path / 'a_file'
-    blocker.write_text('not a directory\n')
-    twin = twin_factory(log_dir=blocker / 'logs', on_log_error='continue')
-    assert twin.node.log is None
-    twin.spin_until(lambda: len(twin.received[itf.BIT_STATE]) >= 20
-                    and twin.statuses('drill_twin: twin health')
-                    and twin.rosout(Log.ERROR), 'ticks without a log')
-    errors = [m.msg for m in twin.rosout(Log.ERROR)]
-    assert len(errors) == 1 and errors[0].startswith(f'cannot write the log {blocker}/logs/')
-    assert 'running without a log (on_log_error: continue)' in errors[0]
-    health = {kv.key: kv.value for kv in twin.statuses('drill_twin: twin health')[-1].values}
-    assert health['log'] == 'none'
-    assert not list(tmp_path.rglob('*.mcap'))
-
-
 # -- 7. the MCAP log -------------------------------------------------------------------------
-
-def _stamp_of(message) -> int:
-    return message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec
-
 
 def test_log_is_complete_and_equal_to_what_was_heard(recorded):
     from mcap_ros2.reader import read_ros2_messages
@@ -577,9 +553,9 @@ def test_log_is_complete_and_equal_to_what_was_heard(recorded):
 
     heard = {stamp_ns(m): m for m in received[itf.BIT_STATE]}
     bit = logged[itf.BIT_STATE]
-    assert len(bit) == len(heard) and all(t == _stamp_of(m) for t, m in bit)
+    assert len(bit) == len(heard) and all(t == stamp_ns(m) for t, m in bit)
     for _, m in bit[::37]:
-        other = heard[_stamp_of(m)]
+        other = heard[stamp_ns(m)]
         assert list(m.name) == list(other.name)
         for field in ('position', 'velocity', 'effort'):
             assert list(getattr(m, field)) == list(getattr(other, field))
@@ -642,3 +618,22 @@ def test_rerun_loads_the_log(recorded, tmp_path):
         expected |= {joint_entity(topic, f) for f in ('position', 'velocity', 'effort')}
     assert expected <= entities, sorted(expected - entities)
 
+
+# -- 9. unwritable log directory (continue) --------------------------------------------------
+
+def test_unwritable_log_dir_runs_on_without_a_log(twin_factory, tmp_path):
+    from rcl_interfaces.msg import Log
+
+    blocker = tmp_path / 'a_file'
+    blocker.write_text('not a directory\n')
+    twin = twin_factory(log_dir=blocker / 'logs', on_log_error='continue')
+    assert twin.node.log is None
+    twin.spin_until(lambda: len(twin.received[itf.BIT_STATE]) >= 20
+                    and twin.statuses('drill_twin: twin health')
+                    and twin.rosout(Log.ERROR), 'ticks without a log')
+    errors = [m.msg for m in twin.rosout(Log.ERROR)]
+    assert len(errors) == 1 and errors[0].startswith(f'cannot write the log {blocker}/logs/')
+    assert 'running without a log (on_log_error: continue)' in errors[0]
+    health = {kv.key: kv.value for kv in twin.statuses('drill_twin: twin health')[-1].values}
+    assert health['log'] == 'none'
+    assert not list(tmp_path.rglob('*.mcap'))
