@@ -467,7 +467,7 @@ def test_safe_parameters_change_and_take_effect(twin_factory):
     # The KPI window now spans 2 s of twin time, the ensemble comes at 20 Hz.
     since = twin.last_stamp_s()
     twin.spin_to(since + 2.5)
-    window = np.array(node.engine._window)
+    window = node.engine.kpi_window_samples()
     assert window[-1, 0] - window[0, 0] <= 2.0 + 1e-9
     stamps = [stamp_ns(m) * 1e-9 for m in twin.received[itf.ENSEMBLE_MEAN]]
     late = np.diff([s for s in stamps if s > since + 0.1])
@@ -498,26 +498,23 @@ def test_unsafe_and_invalid_parameters_are_refused(twin_factory):
 # -- 6. numerical divergence -----------------------------------------------------------------
 
 def test_divergence_is_reported_and_nothing_garbage_published(twin_factory):
-    """One Newton iteration with a tolerance of 1e-14: every step fails to converge, the
-    batch is restarted from its safe state at every attempt."""
+    """One Newton iteration with a tolerance of 1e-14: every step fails to converge. Each
+    failure restarts the batch from its safe state and retries (ERROR diagnostics and rosout);
+    as no step can ever succeed the node stops itself with an error after 100 failed steps
+    rather than let its clock stand still. Nothing non-finite is published meanwhile.
+    (Recovery from a transient divergence is tested on the engine: test_twin_engine.py.)"""
     from diagnostic_msgs.msg import DiagnosticStatus
     from rcl_interfaces.msg import Log
 
     twin = twin_factory(model_overrides=['integration.max_iterations=1',
                                          'integration.tolerance=1e-14'])
-    twin.spin_until(lambda: len(twin.received[itf.BIT_STATE]) >= 5
-                    and twin.statuses('drill_twin: diverged')
-                    and twin.rosout(Log.ERROR)
-                    and twin.statuses('drill_twin: twin health'), 'divergence reports')
+    twin.spin_until(lambda: twin.node.done.done() and twin.statuses('drill_twin: diverged')
+                    and twin.rosout(Log.ERROR, 'cannot be integrated'), 'divergence reports')
+    assert twin.node.failed and twin.node.done.result() is False
     status = twin.statuses('drill_twin: diverged')[0]
     assert status.level == DiagnosticStatus.ERROR
     assert 'diverged' in status.message and 'restarted from a safe state' in status.message
     assert 'diverged' in twin.rosout(Log.ERROR)[0].msg
-    health = {kv.key: kv.value for kv in twin.statuses('drill_twin: twin health')[-1].values}
-    assert int(health['resets']) > 0
-    # It keeps publishing, and only finite numbers.
-    count = len(twin.received[itf.BIT_STATE])
-    twin.spin_until(lambda: len(twin.received[itf.BIT_STATE]) >= count + 5, 'more ticks')
     for topic in (itf.BIT_STATE, itf.TOP_STATE, itf.ENSEMBLE_MEAN, itf.ENSEMBLE_LOWER,
                   itf.ENSEMBLE_UPPER):
         for m in twin.received[topic]:
@@ -528,8 +525,6 @@ def test_divergence_is_reported_and_nothing_garbage_published(twin_factory):
         assert _finite([m.data for m in twin.received[topic]])
     stamps = [stamp_ns(m) for m in twin.received[itf.BIT_STATE]]
     assert stamps == sorted(stamps)
-    depth = [m.position[0] for m in twin.received[itf.BIT_STATE]]
-    assert all(1599.9 < d < 1600.1 for d in depth)
 
 
 # -- 7. the MCAP log -------------------------------------------------------------------------

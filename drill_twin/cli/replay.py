@@ -16,6 +16,9 @@ def add_parser(subparsers) -> None:
                     'the recorded one (zero for the same version of drill_twin).')
     parser.add_argument('log', metavar='LOG.mcap')
     parser.add_argument('--rate', type=float, default=1.0, help='playback speed factor')
+    parser.add_argument('--delay', type=float, default=1.0, metavar='S',
+                        help='wait S seconds before publishing, for subscribers to discover '
+                             'the publishers (default 1)')
     parser.add_argument('--resimulate', action='store_true',
                         help='re-run the twin instead of republishing')
     parser.add_argument('--tolerance', type=float, default=0.0,
@@ -47,4 +50,7 @@ def run(args: argparse.Namespace) -> int:
         return 0 if result.compared and worst <= args.tolerance else 1
     from drill_twin.ros.replay import replay
 
-    return replay(path, args.rate, ['drill-twin'] + list(getattr(args, 'ros_args', [])))
+    if args.delay < 0:
+        raise UsageError(f'--delay: must be >= 0, got {args.delay}')
+    return replay(path, args.rate, ['drill-twin'] + list(getattr(args, 'ros_args', [])),
+                  delay_s=args.delay)

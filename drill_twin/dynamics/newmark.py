@@ -237,6 +237,7 @@ class NewmarkIntegrator:
         v_pred = state.q_rate + (1.0 - GAMMA) * dt * state.q_acceleration
         load = self._external_load(top_speed_rad_per_s, top_acceleration, hook_load_n)
         members = state.q.shape[0]
+        bookkeeping = self._bookkeeping()              # restored if the step fails
         a = state.q_acceleration.copy()
         error = np.full(members, np.inf)
         active = np.ones(members, dtype=bool)        # members still iterating
@@ -298,6 +299,8 @@ class NewmarkIntegrator:
         elif not success:
             message = (f'no convergence in {self.max_iterations} iterations at t = {time:.6g} s '
                        f'(members {np.flatnonzero(~converged)}, error {np.max(error):.3g})')
+        if not success:
+            self._restore(bookkeeping)                 # a discarded step leaves no trace
         self.counters.steps += 1
         self.counters.iterations += iterations
         self.counters.failed_steps += int(not success)
@@ -305,6 +308,14 @@ class NewmarkIntegrator:
                                hook_load_n)
         return new_state, StepResult(success, converged, finite, iterations, error, message,
                                      evaluation)
+
+    def _bookkeeping(self):
+        copy = (lambda x: None if x is None else
+                (tuple(v.copy() for v in x) if isinstance(x, tuple) else x.copy()))
+        return copy(self._rate), copy(self._steps_since_verified), copy(self._active)
+
+    def _restore(self, bookkeeping) -> None:
+        self._rate, self._steps_since_verified, self._active = bookkeeping
 
     def _accept_first_iterate(self, error, evaluation) -> np.ndarray:
         """Members whose first iterate is accepted on their own contraction rate (m,)."""

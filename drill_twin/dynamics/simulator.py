@@ -150,14 +150,17 @@ class Simulator:
     def reset_members(self, members) -> None:
         """Restart ``members`` from a safe state: the configured initial motion under the
         current top speed, twisted to carry the steady torque on bit, with no lateral
-        deflection, at their current depth. The other members are untouched."""
+        deflection, with the bit at its current depth. The other members are untouched."""
         members = np.asarray(members, dtype=int)
         if members.size == 0:
             return
         speed = self.top_drive.speed_rad_per_s
         q, q_rate = self._initial_coordinates(speed, lateral=False, steady_twist=True)
-        depth_column = self.system.blocks['axial'].columns.start
-        q[:, depth_column] = self.state.q[:, depth_column]       # keep how far it drilled
+        axial = self.system.blocks['axial']
+        bit_row = axial.shapes[self.system.bit_node]             # axial mode shapes at the bit
+        bit_position = self.state.q[:, axial.columns] @ bit_row
+        # Keep the bit where it was: the rigid mode alone carries it in the safe state.
+        q[:, axial.columns.start] = bit_position / bit_row[0]
         fresh = self.integrator.initial_state(q, q_rate, speed, self.hook_load_command_n,
                                               top_angle_rad=self.state.top_angle_rad)
         for name in ('q', 'q_rate', 'q_acceleration'):
@@ -184,23 +187,31 @@ class Simulator:
     def time_s(self) -> float:
         return self.state.time_s
 
-    def observe(self) -> Observation:
-        """Measurements at the current state (bit forces from the last converged iterate)."""
+    def observe(self, detailed: int | None = None) -> Observation:
+        """Measurements at the current state (bit forces from the last converged iterate).
+
+        ``detailed``: the stations, the top torque and the hook motion are computed for the
+        first ``detailed`` members only (all by default); the bit quantities always for all.
+        """
         system, state, forces = self.system, self.state, self.last
         top = state.top_speed_rad_per_s
-        u = system.physical(state.q)
-        rate = system.physical(state.q_rate)
-        acceleration = system.physical(state.q_acceleration)
+        keep = slice(None) if detailed is None else slice(0, detailed)
+        u = system.physical(state.q[keep])
+        rate = system.physical(state.q_rate[keep])
+        acceleration = system.physical(state.q_acceleration[keep])
         theta_x = system.field(1)
         rate[:, theta_x] += top
         acceleration[:, theta_x] += state.top_acceleration_rad_per_s2
-        bit, n = system.bit_node, system.n_nodes
+        bit = system.bit_node
         rows = system.driven_rows
         # Torque balance of the whole string about x (the rigid rotation costs no strain).
         top_torque = (acceleration @ rows['mass'] + rate @ rows['damping']
-                      - np.sum(forces.full[:, theta_x], axis=1))
-        rop = rate[:, bit]
-        omega = rate[:, n + bit]
+                      - np.sum(forces.full[keep, theta_x], axis=1))
+        axial, torsion = system.blocks['axial'], system.blocks['torsional']
+        bit_u = state.q[:, axial.columns] @ axial.shapes[bit]              # every member
+        bit_angle = state.q[:, torsion.columns] @ torsion.shapes[bit]
+        rop = forces.rop_m_per_s
+        omega = forces.bit_speed_rad_per_s
         e = self.law.e
         fields = np.stack([st.rows[[0, 1, 2]] for st in system.stations]) if system.stations \
             else np.zeros((0, 3, system.n_dofs))
@@ -208,9 +219,9 @@ class Simulator:
             else np.zeros((0, 3, system.n_dofs))
         return Observation(
             time_s=state.time_s,
-            depth_m=system.model.mesh.total_length_m + u[:, bit],
+            depth_m=system.model.mesh.total_length_m + bit_u,
             rop_m_per_s=rop,
-            angle_rad=state.top_angle_rad + u[:, n + bit],
+            angle_rad=state.top_angle_rad + bit_angle,
             speed_rad_per_s=omega,
             weight_on_bit_n=forces.weight_on_bit_n,
             torque_on_bit_nm=forces.torque_on_bit_nm,

@@ -5,7 +5,6 @@ twin runs on without it.
 """
 from __future__ import annotations
 
-import logging
 from pathlib import Path
 
 from drill_twin.recording.mcap_log import McapLog
@@ -43,8 +42,7 @@ class TwinLog:
             self._log.write(topic, message, time_ns)
         except (OSError, ValueError) as error:
             self.error = f'writing {self.path} failed ({error}); the twin runs on without a log'
-            logging.getLogger('drill_twin').error(self.error)
-            self.close()
+            self.close()                  # the caller reports self.error
 
     def flush(self) -> None:
         if self.open:

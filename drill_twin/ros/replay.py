@@ -38,8 +38,9 @@ def _message_class(type_name: str):
     return import_message_class(type_name)
 
 
-def replay(path, rate: float, ros_args: list[str], report=print) -> int:
-    """Publish the log's messages, paced by their log times divided by ``rate``."""
+def replay(path, rate: float, ros_args: list[str], delay_s: float = 1.0, report=print) -> int:
+    """Publish the log's messages, paced by their log times divided by ``rate``, after
+    ``delay_s`` seconds for subscribers to discover the publishers (FastDDS: 1-2 s)."""
     from drill_twin.recording.rerun_view import stations_from_topics
 
     rclpy.init(args=ros_args)
@@ -47,6 +48,7 @@ def replay(path, rate: float, ros_args: list[str], report=print) -> int:
     count = 0
     try:
         node = ReplayNode(path, stations_from_topics(log_topics(path)))
+        time.sleep(delay_s)
         start_wall = time.monotonic()
         first = None
         for item in iter_messages(path):

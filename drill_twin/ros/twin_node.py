@@ -35,7 +35,8 @@ from drill_twin.recording.qos import rclpy_qos_profile
 from drill_twin.recording.twin_log import TwinLog
 from drill_twin.ros import messages
 from drill_twin.ros.parameters import BY_NAME, PARAMETERS, unsafe_change_reason
-from drill_twin.twin.engine import CommandLimits, CommandRejected, EnsembleSettings, TwinEngine
+from drill_twin.twin.engine import (CommandLimits, CommandRejected, EnsembleSettings,
+                                    TwinEngine, TwinStalled)
 
 FAST_PERIOD_S = 1e-6
 
@@ -73,7 +74,10 @@ class TwinNode(Node):
             raise ConfigError('parameter', 'on_log_error',
                               f"must be 'continue' or 'exit', got {p['on_log_error']!r}")
         self.params = p
-        self.config = load_config(p['model_config'] or None, p['model_overrides'])
+        overrides = list(p['model_overrides'])
+        if p['time_step_s'] > 0:
+            overrides.insert(0, f'integration.time_step_s={p["time_step_s"]!r}')
+        self.config = load_config(p['model_config'] or None, overrides)
         self.engine = TwinEngine(
             self.config,
             EnsembleSettings(members=p['ensemble_members'], dispersion=p['ensemble_dispersion'],
@@ -86,6 +90,7 @@ class TwinNode(Node):
         self.epoch_ns = 0 if self.fast else self.get_clock().now().nanoseconds
         self.stations_m = [s.x_m for s in self.engine.simulator.system.stations]
         self.ticks = 0
+        self.failed = False
         self.done = Future()
         self._health_mark = (time.perf_counter(), 0.0)
         self._outputs = {}
@@ -194,7 +199,13 @@ class TwinNode(Node):
     def _on_tick(self) -> None:
         if self.done.done() or not self.context.ok():       # stopping: publish nothing more
             return
-        snapshot = self.engine.advance(self.substeps)
+        try:
+            snapshot = self.engine.advance(self.substeps)
+        except TwinStalled as error:
+            self._report('error', f'{error}; stopping')
+            self.failed = True
+            self.done.set_result(False)
+            return
         self.ticks += 1
         now = self.twin_time_ns()
         self._publish(itf.BIT_STATE, messages.bit_state(snapshot.bit, now), now)
@@ -329,6 +340,8 @@ def _run(ros_args: list[str]) -> int:
         node = TwinNode()
         executor.add_node(node)
         executor.spin_until_future_complete(node.done)
+        if node.failed:
+            status = 1                                 # the model stalled (reported)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except RCLError:

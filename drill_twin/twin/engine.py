@@ -5,7 +5,9 @@ law unchanged); members 1..N carry random germs of dispersion delta drawn from t
 (seed, j). Every ``advance`` steps them all, checks and applies the commands, watches for
 borehole impacts and bit lift-offs of the mean model, keeps drilling indicators over a moving
 window, and returns a :class:`TwinSnapshot`. A member that diverges is restarted from a safe
-state (its depth kept) and reported; nothing from a failed step is returned.
+state (its depth kept), the step is retried once, and the reset is reported; nothing from a
+failed step is returned. If steps keep failing even from the safe state the engine raises
+TwinStalled rather than let the twin's clock stand still.
 """
 from __future__ import annotations
 
@@ -24,6 +26,15 @@ from drill_twin.uncertainty.germ import germs_for_realizations, validate_dispers
 
 class CommandRejected(ValueError):
     """A command that is not finite or outside its range; the previous one stays."""
+
+
+class TwinStalled(RuntimeError):
+    """The model failed MAX_CONSECUTIVE_FAILURES steps in a row, even from a safe state: the
+    configuration cannot be integrated (the clock would otherwise stand still)."""
+
+
+MAX_CONSECUTIVE_FAILURES = 100
+"""Steps in a row that may fail (each retried once from a safe state) before TwinStalled."""
 
 
 @dataclass(frozen=True)
@@ -127,9 +138,10 @@ class TwinEngine:
                                    system=system)
         self.dt = self.simulator.dt
         self.step_index = 0
+        self._window = _RingBuffer(5, 2)
         self.kpi_window_s = float(kpi_window_s)
-        self._window = deque()
         self._events = []
+        self._consecutive_failures = 0
         self._last = self.simulator.observe()
         self._wall_per_tick = deque(maxlen=100)
         self._iterations = deque(maxlen=100)
@@ -179,29 +191,51 @@ class TwinEngine:
     def time_s(self) -> float:
         return self.simulator.time_s
 
+    @property
+    def kpi_window_s(self) -> float:
+        return self._kpi_window_s
+
+    @kpi_window_s.setter
+    def kpi_window_s(self, seconds: float) -> None:
+        """The KPI window (s); the ring buffer holds one sample per model step."""
+        self._kpi_window_s = float(seconds)
+        self._window.resize(int(math.ceil(self._kpi_window_s / self.dt)) + 1)
+
     def advance(self, steps: int) -> TwinSnapshot:
         """Step the batch ``steps`` times and return the snapshot of the last step."""
         start = time.perf_counter()
         iterations = 0
         for _ in range(steps):
             before = self.simulator.last
-            try:
-                result = self.simulator.step()
-                iterations += result.iterations
-            except SimulationDiverged as error:
-                self._recover(error)
+            result = self._step_with_retry()
+            if result is None:
                 continue
+            iterations += result.iterations
             self.step_index += 1
             now = self.simulator.last                    # the step's forces: cheap to watch
             self._watch(before, now)
             self._window.append((self.time_s, now.bit_speed_rad_per_s[0], now.rop_m_per_s[0],
                                  now.weight_on_bit_n[0], now.torque_on_bit_nm[0]))
-        while self._window and self._window[0][0] < self.time_s - self.kpi_window_s:
-            self._window.popleft()
-        self._last = self.simulator.observe()
+        self._last = self.simulator.observe(detailed=1)        # stations: the mean model's
         self._wall_per_tick.append(time.perf_counter() - start)
         self._iterations.append(iterations / max(steps, 1))
         return self.snapshot()
+
+    def _step_with_retry(self):
+        """One step; a failing member is reset and the step retried once."""
+        for attempt in range(2):
+            try:
+                result = self.simulator.step()
+                self._consecutive_failures = 0
+                return result
+            except SimulationDiverged as error:
+                self._recover(error)
+        self._consecutive_failures += 1
+        if self._consecutive_failures >= MAX_CONSECUTIVE_FAILURES:
+            raise TwinStalled(f'{MAX_CONSECUTIVE_FAILURES} steps in a row failed, even from a '
+                              f'safe state, at t = {self.time_s:.6g} s: the model cannot be '
+                              f'integrated with this configuration')
+        return None
 
     def _recover(self, error: SimulationDiverged) -> None:
         members = list(error.members) or list(range(self.simulator.members))
@@ -236,16 +270,24 @@ class TwinEngine:
             self._events.append(TwinEvent('landing', 'info', t, 'the bit is back on the rock'))
 
     # -- results -------------------------------------------------------------------------
+    def kpi_window_samples(self) -> np.ndarray:
+        """The mean model's samples inside the KPI window, one per step: columns time (s),
+        bit speed (rad/s), ROP (m/s), WOB (N), TOB (N m); shape (n, 5)."""
+        window = self._window.values()
+        return window[window[:, 0] >= self.time_s - self.kpi_window_s - 1e-9]
+
     def snapshot(self) -> TwinSnapshot:
         o = self._last
-        bit = _bit(o, slice(0, 1), np.mean)
+        fields = np.stack([o.depth_m, o.rop_m_per_s, o.weight_on_bit_n, o.angle_rad,
+                           o.speed_rad_per_s, o.torque_on_bit_nm], axis=1)     # (members, 6)
+        bit = BitState(*map(float, fields[0]))
         mean = lower = upper = None
         if self.ensemble.members:
-            members = slice(1, None)
-            mean = _bit(o, members, np.mean)
-            lower = _bit(o, members, lambda v: np.quantile(v, 0.025))
-            upper = _bit(o, members, lambda v: np.quantile(v, 0.975))
-        window = np.array(self._window) if self._window else np.zeros((0, 5))
+            ensemble = fields[1:]
+            mean = BitState(*map(float, ensemble.mean(axis=0)))
+            low, high = _quantiles(ensemble, 0.025, 0.975)
+            lower, upper = BitState(*map(float, low)), BitState(*map(float, high))
+        window = self.kpi_window_samples()
         if window.shape[0] >= 2:
             ssi = float(kpi.stick_slip_severity(window[:, 1]))
             mse = float(kpi.mechanical_specific_energy(window[:, 3], window[:, 4], window[:, 1],
@@ -263,8 +305,8 @@ class TwinEngine:
             'iterations_per_step': float(np.mean(self._iterations)) if self._iterations else 0.0,
             'resets': self.resets,
             'rejected_commands': self.rejected_commands,
-            'ensemble_members_touching_wall': int(np.sum(np.any(o.in_contact[1:], axis=1))),
-            'ensemble_members_lifted_off': int(np.sum(o.lifted[1:])),
+            'ensemble_members_touching_wall': int(o.in_contact[1:].any(axis=1).sum()),
+            'ensemble_members_lifted_off': int(o.lifted[1:].sum()),
         }
         return TwinSnapshot(time_s=o.time_s, step=self.step_index, bit=bit, ensemble_mean=mean,
                             ensemble_lower=lower, ensemble_upper=upper, observation=o,
@@ -272,10 +314,42 @@ class TwinEngine:
                             events=events, health=health)
 
 
-def _bit(o: Observation, members: slice, reduce) -> BitState:
-    return BitState(depth_m=float(reduce(o.depth_m[members])),
-                    rop_m_per_s=float(reduce(o.rop_m_per_s[members])),
-                    weight_on_bit_n=float(reduce(o.weight_on_bit_n[members])),
-                    angle_rad=float(reduce(o.angle_rad[members])),
-                    speed_rad_per_s=float(reduce(o.speed_rad_per_s[members])),
-                    torque_on_bit_nm=float(reduce(o.torque_on_bit_nm[members])))
+def _quantiles(values: np.ndarray, *probabilities):
+    """Quantiles along axis 0 by linear interpolation (numpy's default method), computed
+    directly: np.quantile's overhead dominates for a handful of members."""
+    ordered = np.sort(values, axis=0)
+    last = ordered.shape[0] - 1
+    out = []
+    for p in probabilities:
+        position = p * last
+        low = int(np.floor(position))
+        high = min(low + 1, last)
+        weight = position - low
+        out.append(ordered[low] + weight * (ordered[high] - ordered[low]))
+    return out
+
+
+class _RingBuffer:
+    """The last ``capacity`` rows of ``width`` floats, in order."""
+
+    def __init__(self, width: int, capacity: int):
+        self._data = np.zeros((capacity, width))
+        self._count = 0
+
+    def resize(self, capacity: int) -> None:
+        kept = self.values()[-capacity:]
+        self._data = np.zeros((capacity, self._data.shape[1]))
+        self._data[:kept.shape[0]] = kept
+        self._count = kept.shape[0]
+
+    def append(self, row) -> None:
+        capacity = self._data.shape[0]
+        self._data[self._count % capacity] = row
+        self._count += 1
+
+    def values(self) -> np.ndarray:
+        capacity = self._data.shape[0]
+        if self._count <= capacity:
+            return self._data[:self._count]
+        start = self._count % capacity
+        return np.concatenate([self._data[start:], self._data[:start]])

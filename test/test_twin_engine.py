@@ -1,0 +1,112 @@
+"""The twin's engine without ROS: transient divergence, member independence, KPIs, commands."""
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+import pytest
+from threadpoolctl import threadpool_limits
+
+from drill_twin.config import load_config
+from drill_twin.dynamics import kpi
+from drill_twin.twin.engine import (CommandLimits, CommandRejected, EnsembleSettings,
+                                    TwinEngine, TwinStalled)
+
+
+@pytest.fixture(scope='module')
+def config():
+    return load_config(None, ['integration.time_step_s=0.01'])
+
+
+def _engine(config, members=4):
+    with threadpool_limits(limits=1, user_api='blas'):
+        return TwinEngine(config, EnsembleSettings(members=members, dispersion=0.01, seed=3))
+
+
+def test_a_diverged_member_is_restarted_and_the_others_go_on(config):
+    """Corrupt one ensemble member's state: the next step fails for it alone; it is
+    restarted from a safe state at its depth, the step is retried and time advances; the
+    other members are exactly as in an undisturbed twin."""
+    with threadpool_limits(limits=1, user_api='blas'):
+        disturbed, clean = _engine(config), _engine(config)
+        for engine in (disturbed, clean):
+            engine.advance(100)
+        depth = disturbed.snapshot().observation.depth_m[2]
+        disturbed.simulator.state.q[2, 5] = np.nan
+        snapshot = disturbed.advance(1)
+        clean.advance(1)
+    events = [e for e in snapshot.events if e.kind == 'diverged']
+    assert len(events) == 1 and events[0].level == 'error'
+    assert events[0].values['members'] == '2'
+    assert snapshot.step == 101 and disturbed.resets == 1
+    state = disturbed.simulator.state
+    assert np.all(np.isfinite(state.q))
+    drilled = snapshot.observation.depth_m[2] - depth
+    assert 0 <= drilled < 1e-4                      # kept its depth, drilled on for 10 ms
+    for member in (0, 1, 3, 4):
+        np.testing.assert_array_equal(state.q[member], clean.simulator.state.q[member])
+
+
+def test_a_diverged_mean_model_is_restarted(config):
+    with threadpool_limits(limits=1, user_api='blas'):
+        engine = _engine(config, members=0)
+        engine.advance(50)
+        engine.simulator.state.q_rate[0, 3] = np.inf
+        snapshot = engine.advance(1)
+    assert [e.kind for e in snapshot.events] == ['diverged']
+    assert 'the mean model diverged' in snapshot.events[0].message
+    assert all(math.isfinite(v) for v in vars(snapshot.bit).values())
+    assert snapshot.step == 51
+
+
+def test_a_model_that_cannot_step_stalls_with_an_error():
+    config = load_config(None, ['integration.max_iterations=1', 'integration.tolerance=1e-14'])
+    engine = _engine(config, members=0)
+    with pytest.raises(TwinStalled, match='100 steps in a row failed'):
+        engine.advance(200)
+    assert engine.step_index == 0
+
+
+def test_kpis_over_the_moving_window(config):
+    with threadpool_limits(limits=1, user_api='blas'):
+        engine = _engine(config, members=0)
+        engine.kpi_window_s = 5.0
+        speeds = []
+        for _ in range(1000):                               # 10 s in 10 ms ticks
+            snapshot = engine.advance(1)
+            speeds.append(snapshot.observation.speed_rad_per_s[0])
+    last = np.array(speeds[-501:])                          # the window's 501 samples
+    assert snapshot.stick_slip_severity == pytest.approx(float(kpi.stick_slip_severity(last)),
+                                                         rel=1e-9)
+    assert 0.2 < snapshot.stick_slip_severity < 1.5
+    assert 1e8 < snapshot.mse_pa < 3e8
+    assert 3.0 < snapshot.rop_m_per_h < 15.0
+
+
+def test_ensemble_statistics_contain_the_mean(config):
+    with threadpool_limits(limits=1, user_api='blas'):
+        engine = _engine(config, members=8)
+        for _ in range(200):
+            snapshot = engine.advance(1)
+            for field in vars(snapshot.ensemble_mean):
+                low = getattr(snapshot.ensemble_lower, field)
+                high = getattr(snapshot.ensemble_upper, field)
+                assert low <= getattr(snapshot.ensemble_mean, field) <= high
+
+
+@pytest.mark.parametrize('setter, value, words', [
+    ('set_top_drive_speed', float('nan'), 'not a finite number'),
+    ('set_top_drive_speed', -1.0, 'outside [0, 30] rad/s'),
+    ('set_hook_load', 6e6, 'outside [0, 5e+06] N'),
+    ('set_hook_load', 'heavy', 'not a finite number'),
+])
+def test_bad_commands_are_rejected_and_the_last_valid_stays(config, setter, value, words):
+    engine = TwinEngine(config, EnsembleSettings(members=0), CommandLimits())
+    engine.set_top_drive_speed(4.0)
+    engine.set_hook_load(1.0e6)
+    with pytest.raises(CommandRejected, match=re.escape(words)):
+        getattr(engine, setter)(value)
+    assert engine.top_drive_speed_command == 4.0 and engine.hook_load_command == 1.0e6
+    (event,) = engine.snapshot().events
+    assert event.kind == 'command_rejected' and 'previous command stays' in event.message
