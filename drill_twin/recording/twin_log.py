@@ -44,6 +44,16 @@ class TwinLog:
             self.error = f'writing {self.path} failed ({error}); the twin runs on without a log'
             self.close()                  # the caller reports self.error
 
+    def write_serialized(self, topic: str, data: bytes, time_ns: int) -> None:
+        """Record an already CDR-serialized message on ``topic`` at the twin's time (ns)."""
+        if not self.open:
+            return
+        try:
+            self._log.write_serialized(topic, data, time_ns)
+        except (OSError, ValueError) as error:
+            self.error = f'writing {self.path} failed ({error}); the twin runs on without a log'
+            self.close()
+
     def flush(self) -> None:
         if self.open:
             try:

@@ -24,6 +24,7 @@ from rclpy.exceptions import ParameterUninitializedException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.serialization import serialize_message
 from rclpy.task import Future
 from std_msgs.msg import Float64
 
@@ -246,14 +247,15 @@ class TwinNode(Node):
         return self.ticks % every == 0
 
     def _publish(self, topic: str, message, time_ns: int) -> None:
+        data = serialize_message(message)           # once, for the wire and for the log
         try:
-            self._outputs[topic].publish(message)
+            self._outputs[topic].publish(data)
         except RCLError:
             if self.context.ok():
                 raise
             return                                  # a signal shut the context down mid-tick
         if self.log:
-            self.log.write(topic, message, time_ns)
+            self.log.write_serialized(topic, data, time_ns)
 
     def _publish_health(self, snapshot, now: int) -> None:
         wall, simulated = time.perf_counter(), self.engine.time_s
