@@ -27,6 +27,7 @@ setup(
         'mcap-ros2-support>=0.5',
         'rerun-sdk>=0.41',
         'dask[distributed]>=2024.1',
+        'threadpoolctl>=3.1',
     ],
     extras_require={
         # rclpy and the message packages come from ROS on a ROS machine; without ROS

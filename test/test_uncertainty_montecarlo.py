@@ -155,6 +155,7 @@ def test_montecarlo_command(tmp_path):
                        'spectrum_mean', 'spectrum_lower', 'spectrum_upper'):
             assert f'{q}__{suffix}' in statistics.files
     assert statistics['conv'].shape == (4,)
+    assert load_config(out / 'config.yaml') == load_config()      # the study can be re-run
     for name in ('fig07_convergence.png', 'fig08_rop.png', 'fig10_bit_speed.png',
                  'fig11_radial_displacement.png', 'fig16_rop_realizations.png'):
         assert (out / name).read_bytes()[:4] == b'\x89PNG'

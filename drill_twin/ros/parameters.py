@@ -30,10 +30,9 @@ PARAMETERS = (
     ParameterSpec('seed', 0, 'seed of the ensemble (member j draws from the stream (seed, j))',
                   safe=False, low=0, high=2 ** 31 - 1),
     ParameterSpec('time_step_s', 0.01, 'model time step of the twin (s); every tick advances '
-                  '1 / rate_hz in whole steps. 10 ms keeps a 16-member ensemble in real time '
-                  'with margin (0.2 % error on the stick-slip swing; offline runs use the '
-                  'configuration\'s 5 ms); 0: the configuration\'s', safe=False, low=0.0,
-                  high=0.1),
+                  '1 / rate_hz in whole steps. 10 ms costs half the configuration\'s 5 ms '
+                  '(offline runs) for 0.2 % error on the stick-slip swing; 0: the '
+                  'configuration\'s', safe=False, low=0.0, high=0.1),
     ParameterSpec('rate_hz', 100.0, 'tick rate of the wall-clock timer; every tick advances '
                   '1 / rate_hz of simulated time in model steps', safe=False, low=1.0, high=1000.0),
     ParameterSpec('fast', False, 'run as fast as possible and publish /clock (also with '
@@ -67,3 +66,22 @@ def unsafe_change_reason(name: str) -> str:
     """Why an unsafe parameter cannot change while the twin runs."""
     return (f'{name} cannot change while the twin runs: it sets up the model, the ensemble, '
             f'the clock or the log; restart the twin with the new value')
+
+
+def markdown_table() -> str:
+    """The parameter table of docs/ROS-INTERFACE.md."""
+    def show(value):
+        if isinstance(value, tuple):
+            return '(empty list)' if not value else ', '.join(map(str, value))
+        return repr(value)
+
+    def span(p):
+        if p.choices:
+            return ', '.join(p.choices)
+        number = (lambda x: str(x) if isinstance(x, int) else f'{x:g}')
+        return '' if p.low is None else f'{number(p.low)} … {number(p.high)}'
+
+    rows = ['| parameter | default | range | safe | meaning |', '|---|---|---|---|---|']
+    rows += [f'| `{p.name}` | {show(p.default)} | {span(p)} | {"yes" if p.safe else "no"} | '
+             f'{p.description} |' for p in PARAMETERS]
+    return '\n'.join(rows)

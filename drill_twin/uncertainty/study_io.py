@@ -9,6 +9,8 @@
   amplitude spectra of the mean-removed window signals, in Q's unit); samples and conv
   (Eq. 54); station_m.
 - convergence.csv: samples, conv (Eq. 54).
+- config.yaml: the complete model configuration of the study (``drill-twin montecarlo
+  --config config.yaml`` with the same options repeats it).
 - realizations.npz: index and, per quantity, the window series of every realization
   (float32, (n, n_w)).
 """
@@ -18,7 +20,9 @@ import json
 from pathlib import Path
 
 import numpy as np
+import yaml
 
+from drill_twin.config.loader import config_to_dict
 from drill_twin.uncertainty.montecarlo import QUANTITIES
 from drill_twin.uncertainty.study import StudyResult
 
@@ -60,6 +64,8 @@ def write_study(result: StudyResult, directory: str | Path, figures: bool = True
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     (directory / 'summary.json').write_text(json.dumps(summary(result), indent=2) + '\n')
+    (directory / 'config.yaml').write_text(
+        yaml.safe_dump(config_to_dict(result.config), sort_keys=False))
     frequency, spectra = result.spectra()
     arrays = {'time_s': result.time_s, 'frequency_hz': frequency,
               'station_m': np.array(result.spec.station_m)}
