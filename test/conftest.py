@@ -1,6 +1,7 @@
 """Shared fixtures: the default configuration and model, and configuration builders."""
 from __future__ import annotations
 
+import contextlib
 import copy
 import os
 import sys
@@ -17,6 +18,31 @@ REPO = Path(__file__).resolve().parents[1]
 
 # Rerun writes analytics ids under the user's config directory: keep tests out of $HOME.
 os.environ.setdefault('RERUN_TELEMETRY', '0')
+
+
+def ros_variables(folder: Path, domain_id: int) -> dict[str, str]:
+    """Environment of an isolated ROS 2 run: its own domain, localhost only, FastDDS, the ROS
+    logs and rerun's ids under ``folder``."""
+    return {'ROS_DOMAIN_ID': str(domain_id), 'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST',
+            'RMW_IMPLEMENTATION': 'rmw_fastrtps_cpp', 'RERUN_TELEMETRY': '0',
+            'ROS_LOG_DIR': str(folder / 'log'), 'XDG_CONFIG_HOME': str(folder / 'config'),
+            'XDG_DATA_HOME': str(folder / 'data')}
+
+
+@contextlib.contextmanager
+def ros_environment(folder: Path, domain_id: int):
+    """This process in :func:`ros_variables`; the environment is restored afterwards."""
+    values = ros_variables(folder, domain_id)
+    saved = {key: os.environ.get(key) for key in values}
+    os.environ.update(values)
+    try:
+        yield
+    finally:
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
 
 
 def default_raw() -> dict:

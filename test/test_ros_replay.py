@@ -9,30 +9,20 @@ import sys
 import time
 
 import pytest
-from conftest import REPO
+from conftest import REPO, ros_environment
 
-ENV = {'ROS_DOMAIN_ID': str(random.Random(os.getpid()).randint(120, 200)),
-       'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST', 'RMW_IMPLEMENTATION': 'rmw_fastrtps_cpp'}
+DOMAIN_ID = random.Random(os.getpid()).randint(120, 200)   # apart from the node tests' 1-101
 
 
 @pytest.fixture(scope='module')
 def ros(tmp_path_factory):
     """An rclpy context isolated on its own domain, localhost only."""
-    folder = tmp_path_factory.mktemp('ros')
-    saved = {k: os.environ.get(k) for k in list(ENV) + ['ROS_LOG_DIR', 'XDG_CONFIG_HOME',
-                                                          'XDG_DATA_HOME']}
-    os.environ.update(ENV, ROS_LOG_DIR=str(folder / 'log'),
-                      XDG_CONFIG_HOME=str(folder / 'config'), XDG_DATA_HOME=str(folder / 'data'))
-    import rclpy
+    with ros_environment(tmp_path_factory.mktemp('ros'), DOMAIN_ID):
+        import rclpy
 
-    rclpy.init()
-    yield rclpy
-    rclpy.try_shutdown()
-    for key, value in saved.items():
-        if value is None:
-            os.environ.pop(key, None)
-        else:
-            os.environ[key] = value
+        rclpy.init()
+        yield rclpy
+        rclpy.try_shutdown()
 
 
 def _spin_until(executor, condition, timeout_s):

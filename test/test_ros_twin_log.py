@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import REPO
+from conftest import REPO, ros_variables
 
 from drill_twin import interface as itf
 from drill_twin.recording import reader
@@ -29,10 +29,7 @@ DRILL_TWIN = str(Path(sys.executable).with_name('drill-twin'))
 @pytest.fixture(scope='module')
 def env(tmp_path_factory):
     folder = tmp_path_factory.mktemp('ros_processes')
-    return dict(os.environ, ROS_DOMAIN_ID=str(random.SystemRandom().randint(1, 101)),
-                ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', RMW_IMPLEMENTATION='rmw_fastrtps_cpp',
-                ROS_LOG_DIR=str(folder / 'log'), XDG_CONFIG_HOME=str(folder / 'config'),
-                XDG_DATA_HOME=str(folder / 'data'), RERUN_TELEMETRY='0')
+    return dict(os.environ, **ros_variables(folder, random.SystemRandom().randint(1, 101)))
 
 
 def run(command: list[str], env: dict, timeout_s: float = WAIT_S) -> subprocess.CompletedProcess:

@@ -19,15 +19,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from conftest import ros_environment
 
 from drill_twin import interface as itf
 
 STATIONS = ('x700m', 'x1590m')
-TICK_NS = 10_000_000                  # 100 Hz, 2 steps of 5 ms
+TICK_NS = 10_000_000                  # 100 Hz, one step of 10 ms
 WAIT_S = 120.0                        # deadline of any wait (a loaded 2-core machine is slow)
-ENV = {'ROS_DOMAIN_ID': str(random.SystemRandom().randint(1, 101)),
-       'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST', 'RMW_IMPLEMENTATION': 'rmw_fastrtps_cpp',
-       'RERUN_TELEMETRY': '0'}
+DOMAIN_ID = random.SystemRandom().randint(1, 101)
 
 
 # -- fixtures and helpers ------------------------------------------------------------------------
@@ -39,27 +38,18 @@ def ros(tmp_path_factory):
     BLAS is single-threaded as in ``drill_twin.ros.twin_node.run`` (set after the model's
     libraries are loaded, or threadpoolctl cannot see them).
     """
-    folder = tmp_path_factory.mktemp('ros')
-    extra = {'ROS_LOG_DIR': str(folder / 'log'), 'XDG_CONFIG_HOME': str(folder / 'config'),
-             'XDG_DATA_HOME': str(folder / 'data')}
-    saved = {key: os.environ.get(key) for key in [*ENV, *extra]}
-    os.environ.update(ENV, **extra)
-    import rclpy
-    from threadpoolctl import threadpool_limits
+    with ros_environment(tmp_path_factory.mktemp('ros'), DOMAIN_ID):
+        import rclpy
+        from threadpoolctl import threadpool_limits
 
-    import drill_twin.ros.twin_node  # noqa: F401  (loads numpy and scipy's BLAS)
+        import drill_twin.ros.twin_node  # noqa: F401  (loads numpy and scipy's BLAS)
 
-    rclpy.init()
-    try:
-        with threadpool_limits(limits=1, user_api='blas'):
-            yield rclpy
-    finally:
-        rclpy.try_shutdown()
-        for key, value in saved.items():
-            if value is None:
-                os.environ.pop(key, None)
-            else:
-                os.environ[key] = value
+        rclpy.init()
+        try:
+            with threadpool_limits(limits=1, user_api='blas'):
+                yield rclpy
+        finally:
+            rclpy.try_shutdown()
 
 
 def stamp_ns(message) -> int:

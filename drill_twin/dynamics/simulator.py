@@ -171,7 +171,9 @@ class Simulator:
     def step(self) -> StepResult:
         """Advance dt. Raises SimulationDiverged (the state is left as it was)."""
         speed = self.top_drive.advance(self.top_speed_command_rad_per_s, self.dt)
-        new_state, result = self.integrator.step(self.state, speed, self.hook_load_command_n)
+        # A diverging member's NaN and inf are caught below (SimulationDiverged), not warned of.
+        with np.errstate(invalid='ignore', over='ignore', divide='ignore'):
+            new_state, result = self.integrator.step(self.state, speed, self.hook_load_command_n)
         if not result.success:
             self.top_drive.speed_rad_per_s = self.state.top_speed_rad_per_s
             raise SimulationDiverged(result.message, new_state.time_s,

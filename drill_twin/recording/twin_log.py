@@ -36,23 +36,20 @@ class TwinLog:
 
     def write(self, topic: str, message, time_ns: int) -> None:
         """Record ``message`` on ``topic`` at the twin's time (ns)."""
-        if not self.open:
-            return
-        try:
-            self._log.write(topic, message, time_ns)
-        except (OSError, ValueError) as error:
-            self.error = f'writing {self.path} failed ({error}); the twin runs on without a log'
-            self.close()                  # the caller reports self.error
+        self._guarded(self._log.write, topic, message, time_ns)
 
     def write_serialized(self, topic: str, data: bytes, time_ns: int) -> None:
         """Record an already CDR-serialized message on ``topic`` at the twin's time (ns)."""
+        self._guarded(self._log.write_serialized, topic, data, time_ns)
+
+    def _guarded(self, write, *args) -> None:
         if not self.open:
             return
         try:
-            self._log.write_serialized(topic, data, time_ns)
+            write(*args)
         except (OSError, ValueError) as error:
             self.error = f'writing {self.path} failed ({error}); the twin runs on without a log'
-            self.close()
+            self.close()                  # the caller reports self.error
 
     def flush(self) -> None:
         if self.open:
