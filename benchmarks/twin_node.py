@@ -1,17 +1,18 @@
 """Timing of the real twin node in-process: real-time pacing margin and the fastest RTF.
 
-    python benchmarks/twin_node.py [--seconds 30] [--fast-seconds S] [--no-log]
+    python benchmarks/twin_node.py [--seconds 30] [--fast-seconds S] [--no-log] [--in-process]
 
-Runs ``TwinNode`` with the shipped parameters (config/twin.yaml: 16-member ensemble, 100 Hz
-timer, MCAP log into a temporary directory) on a SingleThreadedExecutor with no subscribers,
+Runs ``TwinNode`` with the shipped parameters (config/twin.yaml: 16-member ensemble in a
+worker process, 100 Hz timer, MCAP log into a temporary directory; ``--in-process``: the
+ensemble in the node's process) on a SingleThreadedExecutor with no subscribers,
 for ``--seconds`` wall seconds at real-time pacing, then again in fast mode (as fast as
 possible, /clock published). BLAS is single-threaded, as ``drill-twin twin`` runs it.
 
 Measured per tick: the timer callback's duration (the model's ``advance`` plus messages,
 publishing and logging; the model part separately) and the period between callback starts.
 Prints the sustained real-time factor (simulated / wall), mean/p50/p99/max tick time, the
-margin 10 ms - p99 (the tick budget at 100 Hz), the period jitter, and the process's CPU
-use. The first ``--warm-up`` seconds of each run are left out. Not part of the test suite.
+margin 10 ms - p99 (the tick budget at 100 Hz), the period jitter, and the CPU use of the
+node's process and of the ensemble worker (in cores). The first ``--warm-up`` seconds of each run are left out. Not part of the test suite.
 """
 from __future__ import annotations
 
@@ -64,13 +65,15 @@ def timed_node_class():
     return TimedTwinNode
 
 
-def run_node(fast: bool, seconds: float, warm_up_s: float, log_dir: Path | None) -> dict:
+def run_node(fast: bool, seconds: float, warm_up_s: float, log_dir: Path | None,
+             in_process: bool) -> dict:
     """Spin a timed twin node for ``seconds`` wall seconds; statistics after the warm-up."""
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
 
     args = ['twin_benchmark', '--ros-args', '--params-file', str(ROOT / 'config' / 'twin.yaml'),
-            '-p', f'fast:={str(fast).lower()}']
+            '-p', f'fast:={str(fast).lower()}',
+            '-p', f'ensemble_process:={str(not in_process).lower()}']
     args += ['-p', f'log_dir:={log_dir}'] if log_dir else ['-p', 'log_enabled:=false']
     rclpy.init(args=args)
     executor = SingleThreadedExecutor()
@@ -78,14 +81,21 @@ def run_node(fast: bool, seconds: float, warm_up_s: float, log_dir: Path | None)
         node = timed_node_class()()
         executor.add_node(node)
         cpu_start, wall_start = time.process_time(), time.perf_counter()
+        children_start = os.times()
         deadline = wall_start + seconds
         while time.perf_counter() < deadline:
             executor.spin_once(timeout_sec=0.05)
-        cpu = (time.process_time() - cpu_start) / (time.perf_counter() - wall_start)
+        wall = time.perf_counter() - wall_start
+        cpu = (time.process_time() - cpu_start) / wall
         result = _statistics(node, warm_up_s, cpu)
-        result['members'] = node.engine.simulator.members - 1
+        result['members'] = node.engine.ensemble.members
         result['log'] = str(node.log.path) if node.log else 'none'
-        node.close()
+        result['in_process'] = in_process
+        node.close()                    # joins the worker: its CPU time counts from here on
+        children = os.times()
+        result['worker_cpu'] = (children.children_user + children.children_system
+                                - children_start.children_user
+                                - children_start.children_system) / wall
         node.destroy_node()
     finally:
         executor.shutdown()
@@ -122,18 +132,22 @@ def print_report(results: dict, seconds: dict, load_before, load_after) -> None:
           f'{load_before[0]:.2f} {load_before[1]:.2f} {load_before[2]:.2f}, after '
           f'{load_after[0]:.2f} {load_after[1]:.2f} {load_after[2]:.2f}')
     first = next(iter(results.values()))
-    print(f'node: {first["members"]} ensemble members + mean model, '
+    print(f'node: {first["members"]} ensemble members '
+          f'({"in the node process" if first["in_process"] else "in a worker process"}) '
+          f'+ mean model, '
           f'{first["tick_budget_ms"]:g} ms of simulated time a tick, log: '
           f'{"on" if first["log"] != "none" else "off"}, no subscribers')
     print()
-    print(f'{"mode":<10} {"wall s":>7} {"ticks":>6} {"sim s":>7} {"RTF":>6} {"CPU":>5} | '
+    print(f'{"mode":<10} {"wall s":>7} {"ticks":>6} {"sim s":>7} {"RTF":>6} {"CPU":>5} '
+          f'{"worker":>6} | '
           f'{"tick ms: mean":>13} {"p50":>6} {"p99":>6} {"max":>6} {"margin":>7} | '
           f'{"model p50":>9} {"p99":>6}')
     for mode, r in results.items():
         t, m = r['tick'], r['model']
         margin = r['tick_budget_ms'] - t['p99']
         print(f'{mode:<10} {seconds[mode]:>7.1f} {r["ticks"]:>6d} {r["simulated_s"]:>7.2f} '
-              f'{r["rtf"]:>6.2f} {100 * r["cpu"]:>4.0f}% | {t["mean"]:>13.2f} {t["p50"]:>6.2f} '
+              f'{r["rtf"]:>6.2f} {100 * r["cpu"]:>4.0f}% {100 * r["worker_cpu"]:>5.0f}% | '
+              f'{t["mean"]:>13.2f} {t["p50"]:>6.2f} '
               f'{t["p99"]:>6.2f} {t["max"]:>6.2f} {margin:>7.2f} | {m["p50"]:>9.2f} '
               f'{m["p99"]:>6.2f}')
     print()
@@ -158,6 +172,8 @@ def main() -> None:
     parser.add_argument('--warm-up', type=float, default=1.0,
                         help='wall seconds left out at the start of each run (default 1)')
     parser.add_argument('--no-log', action='store_true', help='run without the MCAP log')
+    parser.add_argument('--in-process', action='store_true',
+                        help='the ensemble in the node\'s process (ensemble_process: false)')
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix='drill_twin_bench_') as folder:
         folder = Path(folder)
@@ -172,7 +188,8 @@ def main() -> None:
         with threadpool_limits(limits=1, user_api='blas'):
             for mode, fast in (('real time', False), ('fast', True)):
                 log_dir = None if args.no_log else folder / mode.replace(' ', '_')
-                results[mode] = run_node(fast, seconds[mode], args.warm_up, log_dir)
+                results[mode] = run_node(fast, seconds[mode], args.warm_up, log_dir,
+                                         args.in_process)
         print_report(results, seconds, load_before, os.getloadavg())
 
 

@@ -82,7 +82,10 @@ def test_resimulation_reproduces_the_recorded_run(twin_log):
     result = resimulate(twin_log)
     assert result.commands == 3
     assert result.compared == 400                      # 4 s at 100 Hz
-    assert result.identical, result.max_difference
+    # mean, lower and upper at 10 Hz (ticks 10, 20, ..., 400, stamped a tick behind): the
+    # worker process's ensemble of the node against this process's
+    assert result.ensemble_compared == 3 * 40
+    assert result.identical, (result.max_difference, result.ensemble_max_difference)
 
 
 def test_resimulate_command(twin_log):
@@ -92,31 +95,52 @@ def test_resimulate_command(twin_log):
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip().endswith('identical')
     assert '400 bit states compared, 3 commands replayed' in result.stdout
+    assert '120 ensemble mean and bound states compared' in result.stdout
 
 
-def test_resimulation_detects_a_different_model(twin_log, tmp_path):
-    """A log whose model differs from its recorded configuration is not reproduced."""
+def _altered_log(twin_log, path, config_change=None, seed_change=0):
+    """A copy of ``twin_log`` whose recorded configuration or seed is altered."""
     import yaml
 
     from drill_twin.recording.mcap_log import McapLog
     from drill_twin.recording.reader import iter_messages, read_metadata
     from drill_twin.recording.topics import twin_topics
-    from drill_twin.twin.resimulate import resimulate
 
     metadata = dict(read_metadata(twin_log)['drill_twin'])
     config = yaml.safe_load(metadata.pop('config'))
-    config['bit_rock']['a5_n_m'] *= 1.01                 # 1 % stiffer cutting torque
-    seed = int(metadata.pop('seed'))
-    altered = tmp_path / 'altered.mcap'
-    with McapLog(altered) as log:
+    if config_change:
+        config_change(config)
+    seed = int(metadata.pop('seed')) + seed_change
+    with McapLog(path) as log:
         for topic, spec in twin_topics([700.0, 1590.0]).items():
             log.add_topic(topic, spec.type_name, spec.qos)
         log.add_twin_metadata(yaml.safe_dump(config), seed, metadata)
         for item in iter_messages(twin_log):
             log.write(item.topic, item.message, item.log_time_ns)
-    result = resimulate(altered)
+    return path
+
+
+def test_resimulation_detects_a_different_model(twin_log, tmp_path):
+    """A log whose model differs from its recorded configuration is not reproduced."""
+    from drill_twin.twin.resimulate import resimulate
+
+    def stiffer_cutting_torque(config):
+        config['bit_rock']['a5_n_m'] *= 1.01
+
+    result = resimulate(_altered_log(twin_log, tmp_path / 'altered.mcap',
+                                     stiffer_cutting_torque))
     assert not result.identical
     assert result.max_difference['torque_on_bit_nm'] > 1.0
+
+
+def test_resimulation_detects_a_different_seed(twin_log, tmp_path):
+    """Another seed draws other germs: the mean model is reproduced, the ensemble is not."""
+    from drill_twin.twin.resimulate import resimulate
+
+    result = resimulate(_altered_log(twin_log, tmp_path / 'reseeded.mcap', seed_change=1))
+    assert all(value == 0.0 for value in result.max_difference.values())
+    assert not result.identical
+    assert result.ensemble_max_difference['torque_on_bit_nm'] > 1.0
 
 
 def test_replay_republishes_with_the_recorded_values(ros, twin_log):

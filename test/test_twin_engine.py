@@ -25,27 +25,77 @@ def _engine(config, members=4):
 
 
 def test_a_diverged_member_is_restarted_and_the_others_go_on(config):
-    """Corrupt one ensemble member's state: the next step fails for it alone; it is
+    """Corrupt one ensemble member's state: its next step fails for it alone; it is
     restarted from a safe state at its depth, the step is retried and time advances; the
-    other members are exactly as in an undisturbed twin."""
+    other members and the mean model are exactly as in an undisturbed twin."""
     with threadpool_limits(limits=1, user_api='blas'):
         disturbed, clean = _engine(config), _engine(config)
         for engine in (disturbed, clean):
-            engine.advance(100)
-        depth = disturbed.snapshot().observation.depth_m[2]
-        disturbed.simulator.state.q[2, 5] = np.nan
-        snapshot = disturbed.advance(1)
+            for _ in range(100):
+                engine.advance(1)
+        ensemble = disturbed.ensemble_runner.simulator      # members 1..4 at rows 0..3
+        depth = ensemble.observe().depth_m[1]
+        ensemble.state.q[1, 5] = np.nan                     # member 2, before its 100th step
+        snapshot = disturbed.advance(1)                     # runs that step, starts the 101st
         clean.advance(1)
     events = [e for e in snapshot.events if e.kind == 'diverged']
     assert len(events) == 1 and events[0].level == 'error'
     assert events[0].values['members'] == '2'
-    assert snapshot.step == 101 and disturbed.resets == 1
-    state = disturbed.simulator.state
+    assert 'ensemble members [2] diverged' in events[0].message
+    assert snapshot.step == 101 and snapshot.ensemble_step == 100 and disturbed.resets == 1
+    state = ensemble.state
     assert np.all(np.isfinite(state.q))
-    drilled = snapshot.observation.depth_m[2] - depth
+    drilled = ensemble.observe().depth_m[1] - depth
     assert 0 <= drilled < 1e-4                      # kept its depth, drilled on for 10 ms
-    for member in (0, 1, 3, 4):
-        np.testing.assert_array_equal(state.q[member], clean.simulator.state.q[member])
+    for row in (0, 2, 3):
+        np.testing.assert_array_equal(state.q[row],
+                                      clean.ensemble_runner.simulator.state.q[row])
+    np.testing.assert_array_equal(disturbed.simulator.state.q, clean.simulator.state.q)
+    assert snapshot.bit == clean.snapshot().bit
+
+
+def test_an_ensemble_in_a_worker_process_computes_the_same_numbers(config):
+    """The worker process receives the reduced system built here: its members match the
+    in-process ensemble bit for bit, one tick behind the mean model, under changing
+    commands; the mean model does not depend on the ensemble at all."""
+    with threadpool_limits(limits=1, user_api='blas'):
+        local = _engine(config)
+        alone = _engine(config, members=0)
+        worker = TwinEngine(config, EnsembleSettings(members=4, dispersion=0.01, seed=3,
+                                                     separate_process=True))
+        try:
+            for tick in range(60):
+                if tick == 20:
+                    for engine in (local, alone, worker):
+                        engine.set_top_drive_speed(3.0)
+                        engine.set_hook_load(engine.hook_load_command - 20e3)
+                ours, theirs, mean_only = local.advance(2), worker.advance(2), alone.advance(2)
+                assert ours.ensemble_step == theirs.ensemble_step == ours.step - 2
+                assert ours.ensemble_mean == theirs.ensemble_mean
+                assert ours.ensemble_lower == theirs.ensemble_lower
+                assert ours.ensemble_upper == theirs.ensemble_upper
+                assert ours.bit == theirs.bit == mean_only.bit
+            assert ours.ensemble_mean != ours.bit           # the germs do act
+        finally:
+            worker.close()
+
+
+def test_a_lost_worker_drops_the_ensemble_and_the_mean_model_goes_on(config):
+    with threadpool_limits(limits=1, user_api='blas'):
+        engine = TwinEngine(config, EnsembleSettings(members=2, dispersion=0.01, seed=1,
+                                                     separate_process=True))
+        try:
+            engine.advance(5)
+            engine.ensemble_runner._process.kill()
+            snapshot = engine.advance(1)
+            later = engine.advance(1)
+        finally:
+            engine.close()
+    (event,) = snapshot.events
+    assert event.kind == 'ensemble_failed' and event.level == 'error'
+    assert 'exit code -9' in event.message and 'mean model goes on' in event.message
+    assert snapshot.ensemble_mean is None and later.ensemble_mean is None
+    assert later.step == 7 and math.isfinite(later.bit.speed_rad_per_s)
 
 
 def test_a_diverged_mean_model_is_restarted(config):

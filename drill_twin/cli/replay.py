@@ -40,12 +40,17 @@ def run(args: argparse.Namespace) -> int:
             result = resimulate(path)
         except ValueError as error:
             raise UsageError(str(error)) from None
-        worst = max(result.max_difference.values()) if result.max_difference else 0.0
+        ensemble = result.ensemble_max_difference or {}
+        worst = max([*result.max_difference.values(), *ensemble.values()], default=0.0)
         print(f'resimulated {path}: {result.compared} bit states compared, '
               f'{result.commands} commands replayed (log from drill_twin '
               f'{result.recorded_version})')
         for field, value in result.max_difference.items():
             print(f'  max |difference| {field:<18} {value:.3g}')
+        if ensemble:
+            print(f'{result.ensemble_compared} ensemble mean and bound states compared')
+            for field, value in ensemble.items():
+                print(f'  max |difference| {field:<18} {value:.3g}')
         print('identical' if result.identical else f'largest difference {worst:.3g}')
         return 0 if result.compared and worst <= args.tolerance else 1
     from drill_twin.ros.replay import replay

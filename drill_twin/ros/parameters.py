@@ -27,6 +27,9 @@ PARAMETERS = (
                   'with the mean model', safe=False, low=0, high=256),
     ParameterSpec('ensemble_dispersion', 0.01, 'dispersion delta of the ensemble\'s germs',
                   safe=False, low=0.0, high=0.65),
+    ParameterSpec('ensemble_process', True, 'integrate the ensemble in a worker process (a '
+                  'second core) one tick behind the mean model; false: in the node\'s process',
+                  safe=False),
     ParameterSpec('seed', 0, 'seed of the ensemble (member j draws from the stream (seed, j))',
                   safe=False, low=0, high=2 ** 31 - 1),
     ParameterSpec('time_step_s', 0.01, 'model time step of the twin (s); every tick advances '

@@ -82,36 +82,37 @@ class TwinNode(Node):
         self.engine = TwinEngine(
             self.config,
             EnsembleSettings(members=p['ensemble_members'], dispersion=p['ensemble_dispersion'],
-                             seed=p['seed']),
+                             seed=p['seed'], separate_process=p['ensemble_process']),
             self._limits(p), kpi_window_s=p['kpi_window_s'])
-        dt = self.engine.dt
-        self.substeps = max(1, round(1.0 / (p['rate_hz'] * dt)))
-        self.tick_s = self.substeps * dt
-        self.dt_ns = int(round(dt * 1e9))
-        self.epoch_ns = 0 if self.fast else self.get_clock().now().nanoseconds
-        self.stations_m = [s.x_m for s in self.engine.simulator.system.stations]
-        self.ticks = 0
-        self.failed = False
-        self.done = Future()
-        self._health_mark = (time.perf_counter(), 0.0)
-        self._outputs = {}
-        for topic, (type_, qos) in self._published_topics().items():
-            self._outputs[topic] = self.create_publisher(type_, topic, rclpy_qos_profile(qos))
-        command_qos = rclpy_qos_profile(itf.STATE_QOS)
-        self.create_subscription(Float64, itf.CMD_TOP_DRIVE_SPEED, self._on_top_drive_speed,
-                                 command_qos)
-        self.create_subscription(Float64, itf.CMD_HOOK_LOAD, self._on_hook_load, command_qos)
-        self.log = self._open_log(p) if p['log_enabled'] else None
+        self.log = None
         try:
+            dt = self.engine.dt
+            self.substeps = max(1, round(1.0 / (p['rate_hz'] * dt)))
+            self.tick_s = self.substeps * dt
+            self.dt_ns = int(round(dt * 1e9))
+            self.epoch_ns = 0 if self.fast else self.get_clock().now().nanoseconds
+            self.stations_m = [s.x_m for s in self.engine.simulator.system.stations]
+            self.ticks = 0
+            self.failed = False
+            self.done = Future()
+            self._health_mark = (time.perf_counter(), 0.0)
+            self._outputs = {}
+            for topic, (type_, qos) in self._published_topics().items():
+                self._outputs[topic] = self.create_publisher(type_, topic, rclpy_qos_profile(qos))
+            command_qos = rclpy_qos_profile(itf.STATE_QOS)
+            self.create_subscription(Float64, itf.CMD_TOP_DRIVE_SPEED, self._on_top_drive_speed,
+                                     command_qos)
+            self.create_subscription(Float64, itf.CMD_HOOK_LOAD, self._on_hook_load, command_qos)
+            self.log = self._open_log(p) if p['log_enabled'] else None
             self.timer = self.create_timer(FAST_PERIOD_S if self.fast else 1.0 / p['rate_hz'],
                                            self._on_tick)
             self.add_on_set_parameters_callback(self._on_set_parameters)
-            self._report('info', f'drill_twin {__version__}: {self.engine.simulator.members - 1} '
+            self._report('info', f'drill_twin {__version__}: {self.engine.ensemble.members} '
                          f'ensemble members (delta {p["ensemble_dispersion"]:g}, seed '
                          f'{p["seed"]}), {self.substeps} steps of {dt * 1e3:g} ms per tick, '
                          + ('fast, publishing /clock' if self.fast else f'{p["rate_hz"]:g} Hz')
                          + (f'; logging to {self.log.path}' if self.log else '; no log'))
-        except BaseException:               # e.g. a signal while starting: finish the log
+        except BaseException:       # e.g. a signal while starting: stop the worker, finish the log
             self.close()
             raise
 
@@ -220,11 +221,11 @@ class TwinNode(Node):
             self._publish(itf.KPI_MSE, messages.scalar(snapshot.mse_pa), now)
             self._publish(itf.KPI_ROP, messages.scalar(snapshot.rop_m_per_h), now)
         if snapshot.ensemble_mean is not None and self._due(self.params['ensemble_rate_hz']):
-            self._publish(itf.ENSEMBLE_MEAN, messages.bit_state(snapshot.ensemble_mean, now), now)
-            self._publish(itf.ENSEMBLE_LOWER, messages.bit_state(snapshot.ensemble_lower, now),
-                          now)
-            self._publish(itf.ENSEMBLE_UPPER, messages.bit_state(snapshot.ensemble_upper, now),
-                          now)
+            stamp = self.epoch_ns + snapshot.ensemble_step * self.dt_ns     # a tick behind
+            for topic, state in ((itf.ENSEMBLE_MEAN, snapshot.ensemble_mean),
+                                 (itf.ENSEMBLE_LOWER, snapshot.ensemble_lower),
+                                 (itf.ENSEMBLE_UPPER, snapshot.ensemble_upper)):
+                self._publish(topic, messages.bit_state(state, stamp), now)
         if snapshot.events:
             self._publish(itf.DIAGNOSTICS, messages.events(snapshot.events, now), now)
             for event in snapshot.events:
@@ -269,6 +270,7 @@ class TwinNode(Node):
                   'tick_time_max_ms': f'{1e3 * h["tick_wall_time_max_s"]:.2f}',
                   'tick_period_ms': f'{1e3 * self.tick_s:.2f}',
                   'iterations_per_step': f'{h["iterations_per_step"]:.2f}',
+                  'ensemble_iterations_per_step': f'{h["ensemble_iterations_per_step"]:.2f}',
                   'members': h['members'], 'resets': h['resets'],
                   'rejected_commands': h['rejected_commands'],
                   'ensemble_members_touching_wall': h['ensemble_members_touching_wall'],
@@ -317,7 +319,8 @@ class TwinNode(Node):
 
     # -- ending --------------------------------------------------------------------------
     def close(self) -> None:
-        """Complete the log (safe to call twice)."""
+        """Stop the ensemble worker and complete the log (safe to call twice)."""
+        self.engine.close()
         if self.log:
             self.log.close()
 

@@ -1,56 +1,41 @@
 """The twin's engine: the mean model and an online ensemble stepped together, ROS-free.
 
-Member 0 of the batch is the mean model (its germ is the identity, which leaves the bit-rock
-law unchanged); members 1..N carry random germs of dispersion delta drawn from the stream
-(seed, j). Every ``advance`` steps them all, checks and applies the commands, watches for
-borehole impacts and bit lift-offs of the mean model, keeps drilling indicators over a moving
-window, and returns a :class:`TwinSnapshot`. A member that diverges is restarted from a safe
-state (its depth kept), the step is retried once, and the reset is reported; nothing from a
-failed step is returned. If steps keep failing even from the safe state the engine raises
-TwinStalled rather than let the twin's clock stand still.
+The mean model (the bit-rock law of the paper's Eq. 25-26) is a batch of one; the online
+ensemble (:mod:`~drill_twin.twin.ensemble`), N realizations of the random law, is a batch of
+its own, stepped under the same commands in this process or in a worker process. Every
+``advance`` checks and applies the commands, steps the mean model, hands the tick to the
+ensemble and collects the previous tick's ensemble, watches for borehole impacts and bit
+lift-offs of the mean model, keeps drilling indicators over a moving window, and returns a
+:class:`TwinSnapshot`. A member that diverges is restarted from a safe state (its depth kept),
+the step is retried once, and the reset is reported; nothing from a failed step is returned.
+If the mean model keeps failing even from the safe state the engine raises TwinStalled rather
+than let the twin's clock stand still; an ensemble that fails is dropped with an error event
+and the mean model goes on. The mean model does not depend on the ensemble: the same commands
+give the same mean model with any ensemble, or none.
 """
 from __future__ import annotations
 
 import math
 import time
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from drill_twin.config.schema import DrillStringConfig
 from drill_twin.dynamics import kpi
-from drill_twin.dynamics.simulator import Observation, SimulationDiverged, Simulator
-from drill_twin.uncertainty.germ import germs_for_realizations, validate_dispersion
+from drill_twin.dynamics.simulator import Observation, Simulator
+from drill_twin.twin.ensemble import (EnsembleFailed, EnsembleResult, EnsembleSettings,
+                                      open_ensemble)
+from drill_twin.twin.stepping import (MAX_CONSECUTIVE_FAILURES, GuardedSimulator, TwinEvent,
+                                      TwinStalled)
+
+__all__ = ['BitState', 'CommandLimits', 'CommandRejected', 'EnsembleSettings', 'TwinEngine',
+           'TwinEvent', 'TwinSnapshot', 'TwinStalled', 'MAX_CONSECUTIVE_FAILURES']
 
 
 class CommandRejected(ValueError):
     """A command that is not finite or outside its range; the previous one stays."""
-
-
-class TwinStalled(RuntimeError):
-    """The model failed MAX_CONSECUTIVE_FAILURES steps in a row, even from a safe state: the
-    configuration cannot be integrated (the clock would otherwise stand still)."""
-
-
-MAX_CONSECUTIVE_FAILURES = 100
-"""Steps in a row that may fail (each retried once from a safe state) before TwinStalled."""
-
-
-@dataclass(frozen=True)
-class EnsembleSettings:
-    """The online ensemble: ``members`` random realizations of dispersion ``dispersion``."""
-
-    members: int = 16
-    dispersion: float = 0.01
-    seed: int = 0
-
-    def __post_init__(self):
-        if self.members < 0:
-            raise ValueError(f'ensemble members: must be >= 0, got {self.members}')
-        validate_dispersion(self.dispersion)
-        if self.seed < 0:
-            raise ValueError(f'seed: must be >= 0, got {self.seed}')
 
 
 @dataclass(frozen=True)
@@ -60,21 +45,6 @@ class CommandLimits:
     top_drive_speed_max_rad_per_s: float = 30.0
     hook_load_min_n: float = 0.0
     hook_load_max_n: float = 5.0e6
-
-
-@dataclass(frozen=True)
-class TwinEvent:
-    """Something the rig should hear about.
-
-    kind: 'impact' (a node touches the wall), 'contact_end', 'lift_off', 'landing',
-    'diverged' (a member was reset), 'command_rejected'. level: 'info', 'warn' or 'error'.
-    """
-
-    kind: str
-    level: str
-    time_s: float
-    message: str
-    values: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -94,9 +64,11 @@ class TwinSnapshot:
     """The twin after a tick (SI units).
 
     bit: the mean model's bit; ensemble_mean, ensemble_lower (2.5 %), ensemble_upper (97.5 %):
-    over the random members (None without an ensemble); observation: the full mean-model
-    observation (top, stations, wall); kpis: stick-slip severity (-), MSE (Pa), ROP (m/h)
-    over the KPI window; events since the last tick; health: step and timing figures.
+    over the random members, at the ensemble's own step ``ensemble_step`` and time
+    ``ensemble_time_s``, one tick behind the mean model (all None without an ensemble);
+    observation: the full mean-model observation (top, stations, wall); kpis: stick-slip
+    severity (-), MSE (Pa), ROP (m/h) over the KPI window; events since the last tick;
+    health: step and timing figures.
     """
 
     time_s: float
@@ -105,6 +77,8 @@ class TwinSnapshot:
     ensemble_mean: BitState | None
     ensemble_lower: BitState | None
     ensemble_upper: BitState | None
+    ensemble_step: int | None
+    ensemble_time_s: float | None
     observation: Observation
     stick_slip_severity: float
     mse_pa: float
@@ -118,10 +92,12 @@ class TwinEngine:
 
     Args:
         config: the model.
-        ensemble: ensemble size, dispersion and seed.
+        ensemble: ensemble size, dispersion, seed, and whether it runs in a worker process.
         limits: accepted command ranges.
         kpi_window_s: moving window of the stick-slip severity and the MSE (s).
         system: a prebuilt reduced system of ``config`` (built if None).
+
+    Call :meth:`close` when done (it stops an ensemble worker process).
     """
 
     def __init__(self, config: DrillStringConfig, ensemble: EnsembleSettings = EnsembleSettings(),
@@ -130,23 +106,32 @@ class TwinEngine:
         self.config = config
         self.ensemble = ensemble
         self.limits = limits
-        germs = np.eye(2)[None].repeat(1 + ensemble.members, axis=0)
-        if ensemble.members:
-            germs[1:] = germs_for_realizations(ensemble.dispersion, ensemble.seed,
-                                               range(ensemble.members))
-        self.simulator = Simulator(config, members=1 + ensemble.members, germs=germs,
-                                   system=system)
+        self.simulator = Simulator(config, members=1, system=system)
+        self._mean = GuardedSimulator(self.simulator, first_member=0, name='the mean model')
         self.dt = self.simulator.dt
         self.step_index = 0
         self._window = _RingBuffer(5, 2)
         self.kpi_window_s = float(kpi_window_s)
         self._events = []
-        self._consecutive_failures = 0
         self._last = self.simulator.observe()
         self._wall_per_tick = deque(maxlen=100)
         self._iterations = deque(maxlen=100)
-        self.resets = 0
         self.rejected_commands = 0
+        self.ensemble_runner = open_ensemble(config, ensemble, self.simulator.system)
+        self._ensemble_latest: EnsembleResult | None = (
+            self.ensemble_runner.latest if self.ensemble_runner else None)
+        self._ensemble_resets = 0
+
+    @property
+    def resets(self) -> int:
+        """Members restarted from a safe state so far (mean model and ensemble)."""
+        return self._mean.resets + self._ensemble_resets
+
+    def close(self) -> None:
+        """Stop the ensemble (its worker process, if any)."""
+        if self.ensemble_runner is not None:
+            self.ensemble_runner.close()
+            self.ensemble_runner = None
 
     # -- commands ------------------------------------------------------------------------
     @property
@@ -202,12 +187,15 @@ class TwinEngine:
         self._window.resize(int(math.ceil(self._kpi_window_s / self.dt)) + 1)
 
     def advance(self, steps: int) -> TwinSnapshot:
-        """Step the batch ``steps`` times and return the snapshot of the last step."""
+        """Step the mean model ``steps`` times (the ensemble likewise, one tick behind) and
+        return the snapshot of the last step."""
         start = time.perf_counter()
+        self._exchange_with_ensemble(steps)
         iterations = 0
         for _ in range(steps):
             before = self.simulator.last
-            result = self._step_with_retry()
+            result = self._mean.step()
+            self._events.extend(self._mean.take_events())
             if result is None:
                 continue
             iterations += result.iterations
@@ -216,37 +204,32 @@ class TwinEngine:
             self._watch(before, now)
             self._window.append((self.time_s, now.bit_speed_rad_per_s[0], now.rop_m_per_s[0],
                                  now.weight_on_bit_n[0], now.torque_on_bit_nm[0]))
-        self._last = self.simulator.observe(detailed=1)        # stations: the mean model's
+        self._last = self.simulator.observe()
         self._wall_per_tick.append(time.perf_counter() - start)
         self._iterations.append(iterations / max(steps, 1))
         return self.snapshot()
 
-    def _step_with_retry(self):
-        """One step; a failing member is reset and the step retried once."""
-        for attempt in range(2):
-            try:
-                result = self.simulator.step()
-                self._consecutive_failures = 0
-                return result
-            except SimulationDiverged as error:
-                self._recover(error)
-        self._consecutive_failures += 1
-        if self._consecutive_failures >= MAX_CONSECUTIVE_FAILURES:
-            raise TwinStalled(f'{MAX_CONSECUTIVE_FAILURES} steps in a row failed, even from a '
-                              f'safe state, at t = {self.time_s:.6g} s: the model cannot be '
-                              f'integrated with this configuration')
-        return None
-
-    def _recover(self, error: SimulationDiverged) -> None:
-        members = list(error.members) or list(range(self.simulator.members))
-        self.simulator.reset_members(members)
-        self.resets += len(members)
-        which = 'the mean model' if 0 in members else f'ensemble members {members}'
-        self._events.append(TwinEvent(
-            'diverged', 'error', self.time_s,
-            f'{which} diverged ({error}); restarted from a safe state at the same depth',
-            {'members': ' '.join(map(str, members)), 'time_s': f'{error.time_s:.6g}'}))
-        self._last = self.simulator.observe()
+    def _exchange_with_ensemble(self, steps: int) -> None:
+        """Collect the ensemble's previous tick and hand it this one, under the commands
+        in force for the mean model's coming steps."""
+        if self.ensemble_runner is None:
+            return
+        try:
+            latest = self.ensemble_runner.collect()
+            self.ensemble_runner.start(steps, self.top_drive_speed_command,
+                                       self.hook_load_command)
+        except EnsembleFailed as error:
+            self.ensemble_runner.close()
+            self.ensemble_runner, self._ensemble_latest = None, None
+            self._events.append(TwinEvent(
+                'ensemble_failed', 'error', self.time_s,
+                f'{error}; the ensemble is dropped and the mean model goes on'))
+            return
+        if latest is not self._ensemble_latest:
+            self._events.extend(latest.events)
+            self._ensemble_resets += sum(len(e.values['members'].split())
+                                         for e in latest.events if e.kind == 'diverged')
+        self._ensemble_latest = latest
 
     def _watch(self, before, now) -> None:
         """Events of the mean model between two steps' force evaluations."""
@@ -278,15 +261,16 @@ class TwinEngine:
 
     def snapshot(self) -> TwinSnapshot:
         o = self._last
-        fields = np.stack([o.depth_m, o.rop_m_per_s, o.weight_on_bit_n, o.angle_rad,
-                           o.speed_rad_per_s, o.torque_on_bit_nm], axis=1)     # (members, 6)
-        bit = BitState(*map(float, fields[0]))
-        mean = lower = upper = None
-        if self.ensemble.members:
-            ensemble = fields[1:]
-            mean = BitState(*map(float, ensemble.mean(axis=0)))
-            low, high = _quantiles(ensemble, 0.025, 0.975)
+        bit = BitState(float(o.depth_m[0]), float(o.rop_m_per_s[0]),
+                       float(o.weight_on_bit_n[0]), float(o.angle_rad[0]),
+                       float(o.speed_rad_per_s[0]), float(o.torque_on_bit_nm[0]))
+        mean = lower = upper = ensemble_step = ensemble_time = None
+        ensemble = self._ensemble_latest
+        if ensemble is not None:
+            mean = BitState(*map(float, ensemble.bit.mean(axis=0)))
+            low, high = _quantiles(ensemble.bit, 0.025, 0.975)
             lower, upper = BitState(*map(float, low)), BitState(*map(float, high))
+            ensemble_step, ensemble_time = ensemble.step, ensemble.time_s
         window = self.kpi_window_samples()
         if window.shape[0] >= 2:
             ssi = float(kpi.stick_slip_severity(window[:, 1]))
@@ -299,19 +283,21 @@ class TwinEngine:
         events, self._events = tuple(self._events), []
         wall = np.array(self._wall_per_tick) if self._wall_per_tick else np.zeros(1)
         health = {
-            'members': self.simulator.members,
+            'members': 1 + (self.ensemble.members if ensemble is not None else 0),
             'tick_wall_time_s': float(wall[-1]),
             'tick_wall_time_max_s': float(wall.max()),
             'iterations_per_step': float(np.mean(self._iterations)) if self._iterations else 0.0,
+            'ensemble_iterations_per_step': ensemble.iterations_per_step if ensemble else 0.0,
             'resets': self.resets,
             'rejected_commands': self.rejected_commands,
-            'ensemble_members_touching_wall': int(o.in_contact[1:].any(axis=1).sum()),
-            'ensemble_members_lifted_off': int(o.lifted[1:].sum()),
+            'ensemble_members_touching_wall': ensemble.touching_wall if ensemble else 0,
+            'ensemble_members_lifted_off': ensemble.lifted_off if ensemble else 0,
         }
         return TwinSnapshot(time_s=o.time_s, step=self.step_index, bit=bit, ensemble_mean=mean,
-                            ensemble_lower=lower, ensemble_upper=upper, observation=o,
-                            stick_slip_severity=ssi, mse_pa=mse, rop_m_per_h=3600.0 * rop,
-                            events=events, health=health)
+                            ensemble_lower=lower, ensemble_upper=upper,
+                            ensemble_step=ensemble_step, ensemble_time_s=ensemble_time,
+                            observation=o, stick_slip_severity=ssi, mse_pa=mse,
+                            rop_m_per_h=3600.0 * rop, events=events, health=health)
 
 
 def _quantiles(values: np.ndarray, *probabilities):

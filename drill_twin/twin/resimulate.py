@@ -3,8 +3,10 @@
 The log's ``drill_twin`` metadata holds the model configuration, the seed, the ensemble and the
 time step; the accepted commands are recorded at the twin time at which they took effect (the
 start of the next model step). Stepping a new engine and applying each command before the
-step that starts at its time reproduces the run; with the same version of drill_twin the
-bit state is identical bit for bit.
+step that starts at its time reproduces the run: the mean model's bit state and the
+ensemble's mean and 2.5 % / 97.5 % bounds (drawn again from the recorded seed). With the same
+version of drill_twin both are identical bit for bit, whether the ensemble ran in the node's
+process or in a worker process (the re-run integrates it in this process).
 """
 from __future__ import annotations
 
@@ -20,21 +22,39 @@ from drill_twin.twin.engine import CommandLimits, EnsembleSettings, TwinEngine
 
 FIELDS = ('depth_m', 'rop_m_per_s', 'weight_on_bit_n', 'angle_rad', 'speed_rad_per_s',
           'torque_on_bit_nm')
+ENSEMBLE_TOPICS = {itf.ENSEMBLE_MEAN: 'ensemble_mean', itf.ENSEMBLE_LOWER: 'ensemble_lower',
+                   itf.ENSEMBLE_UPPER: 'ensemble_upper'}
 
 
 @dataclass(frozen=True)
 class Resimulation:
     """compared: bit-state messages compared; max_difference: per field, the largest absolute
-    difference (SI units); recorded_version / version: of the log and of this code."""
+    difference (SI units); ensemble_compared / ensemble_max_difference: the same over the
+    ensemble mean and bound messages; recorded_version: drill_twin's version in the log;
+    commands: commands replayed."""
 
     compared: int
     max_difference: dict
     recorded_version: str
     commands: int
+    ensemble_compared: int = 0
+    ensemble_max_difference: dict | None = None
 
     @property
     def identical(self) -> bool:
-        return self.compared > 0 and all(v == 0.0 for v in self.max_difference.values())
+        differences = list(self.max_difference.values())
+        differences += list((self.ensemble_max_difference or {}).values())
+        return self.compared > 0 and all(v == 0.0 for v in differences)
+
+
+def _stamp_ns(message) -> int:
+    stamp = message.header.stamp
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
+def _values(message) -> tuple:
+    return (message.position[0], message.velocity[0], message.effort[0],
+            message.position[1], message.velocity[1], message.effort[1])
 
 
 def resimulate(path) -> Resimulation:
@@ -45,12 +65,14 @@ def resimulate(path) -> Resimulation:
     config = build_config(yaml.safe_load(metadata['config']), source=str(path))
     epoch = int(metadata['clock_epoch_ns'])
     dt_ns = int(round(float(metadata['time_step_s']) * 1e9))
-    commands, recorded = [], {}
-    for item in iter_messages(path, topics=[itf.CMD_TOP_DRIVE_SPEED, itf.CMD_HOOK_LOAD,
-                                            itf.BIT_STATE]):
+    commands, recorded, ensemble_recorded = [], {}, {}
+    topics = [itf.CMD_TOP_DRIVE_SPEED, itf.CMD_HOOK_LOAD, itf.BIT_STATE, *ENSEMBLE_TOPICS]
+    for item in iter_messages(path, topics=topics):
         if item.topic == itf.BIT_STATE:
-            stamp = item.message.header.stamp
-            recorded[stamp.sec * 1_000_000_000 + stamp.nanosec] = item.message
+            recorded[_stamp_ns(item.message)] = item.message
+        elif item.topic in ENSEMBLE_TOPICS:
+            ensemble_recorded.setdefault(_stamp_ns(item.message), []).append(
+                (ENSEMBLE_TOPICS[item.topic], item.message))
         else:
             commands.append((item.log_time_ns, item.topic, item.message.data))
     commands.sort(key=lambda c: c[0])
@@ -62,29 +84,42 @@ def resimulate(path) -> Resimulation:
             CommandLimits(top_drive_speed_max_rad_per_s=float('inf'),
                           hook_load_min_n=-float('inf'), hook_load_max_n=float('inf')),
             kpi_window_s=float(metadata.get('kpi_window_s', 10.0)))
-        last = max(recorded) if recorded else epoch
-        steps = (last - epoch) // dt_ns
-        differences = {field: 0.0 for field in FIELDS}
-        compared = 0
-        pending = 0
-        for k in range(steps + 1):
-            now = epoch + k * dt_ns
-            while pending < len(commands) and commands[pending][0] <= now:
-                _, topic, value = commands[pending]
-                (engine.set_top_drive_speed if topic == itf.CMD_TOP_DRIVE_SPEED
-                 else engine.set_hook_load)(value)
-                pending += 1
-            if now in recorded:
-                bit = engine.snapshot().bit
-                message = recorded[now]
-                ours = (bit.depth_m, bit.rop_m_per_s, bit.weight_on_bit_n, bit.angle_rad,
-                        bit.speed_rad_per_s, bit.torque_on_bit_nm)
-                theirs = (message.position[0], message.velocity[0], message.effort[0],
-                          message.position[1], message.velocity[1], message.effort[1])
-                for field, a, b in zip(FIELDS, ours, theirs):
-                    differences[field] = max(differences[field], abs(a - b))
-                compared += 1
-            if k < steps:
-                engine.advance(1)
+        try:
+            last = max(recorded) if recorded else epoch
+            steps = (last - epoch) // dt_ns
+            differences = {field: 0.0 for field in FIELDS}
+            ensemble_differences = {field: 0.0 for field in FIELDS}
+            compared = ensemble_compared = 0
+            pending = 0
+            for k in range(steps + 1):
+                now = epoch + k * dt_ns
+                while pending < len(commands) and commands[pending][0] <= now:
+                    _, topic, value = commands[pending]
+                    (engine.set_top_drive_speed if topic == itf.CMD_TOP_DRIVE_SPEED
+                     else engine.set_hook_load)(value)
+                    pending += 1
+                snapshot = engine.snapshot()
+                if now in recorded:
+                    bit = snapshot.bit
+                    ours = tuple(getattr(bit, field) for field in FIELDS)
+                    for field, a, b in zip(FIELDS, ours, _values(recorded[now])):
+                        differences[field] = max(differences[field], abs(a - b))
+                    compared += 1
+                if snapshot.ensemble_step is not None:
+                    stamp = epoch + snapshot.ensemble_step * dt_ns
+                    for name, message in ensemble_recorded.pop(stamp, ()):
+                        state = getattr(snapshot, name)
+                        ours = tuple(getattr(state, field) for field in FIELDS)
+                        for field, a, b in zip(FIELDS, ours, _values(message)):
+                            ensemble_differences[field] = max(ensemble_differences[field],
+                                                              abs(a - b))
+                        ensemble_compared += 1
+                if k < steps:
+                    engine.advance(1)
+        finally:
+            engine.close()
     return Resimulation(compared=compared, max_difference=differences,
-                        recorded_version=metadata.get('version', '?'), commands=len(commands))
+                        recorded_version=metadata.get('version', '?'), commands=len(commands),
+                        ensemble_compared=ensemble_compared,
+                        ensemble_max_difference=ensemble_differences if ensemble_compared
+                        else None)

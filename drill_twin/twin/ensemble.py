@@ -1,0 +1,245 @@
+"""The twin's online ensemble: N realizations of the random bit-rock law, stepped as a batch
+beside the mean model, in this process or in a worker process of its own.
+
+The engine hands the ensemble each tick's work with :meth:`start` (steps and the commands in
+force) and picks the result up with :meth:`collect` at the start of the next tick, so that a
+worker process integrates the ensemble while the node steps the mean model and publishes:
+the two cores of a small machine share the load, and the ensemble's statistics lag the mean
+model by one tick (each result carries its own step and time). Both kinds compute the same
+numbers: the worker receives the reduced system built here.
+
+Member j (1..N) carries the germ of realization j - 1 of the stream ``seed``
+(:func:`~drill_twin.uncertainty.germ.germs_for_realizations`).
+"""
+from __future__ import annotations
+
+import multiprocessing.connection
+import os
+import signal
+import socket
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+from drill_twin.config.schema import DrillStringConfig
+from drill_twin.dynamics.simulator import Simulator
+from drill_twin.twin.stepping import GuardedSimulator, TwinEvent
+from drill_twin.uncertainty.executors import SINGLE_THREADED_BLAS
+from drill_twin.uncertainty.germ import germs_for_realizations, validate_dispersion
+
+BIT_FIELDS = ('depth_m', 'rop_m_per_s', 'weight_on_bit_n', 'angle_rad', 'speed_rad_per_s',
+              'torque_on_bit_nm')
+"""The columns of :attr:`EnsembleResult.bit`, in the order of BitState's fields."""
+
+WORKER_START_TIMEOUT_S = 120.0
+"""How long a worker process may take to import and start (s)."""
+
+WORKER_REPLY_TIMEOUT_S = 60.0
+"""How long a worker process may take over one tick before it is taken for lost (s)."""
+
+
+@dataclass(frozen=True)
+class EnsembleSettings:
+    """The online ensemble: ``members`` random realizations of dispersion ``dispersion``
+    drawn from the stream ``seed``; ``separate_process``: integrate them in a worker process
+    (a second core) instead of this one."""
+
+    members: int = 16
+    dispersion: float = 0.01
+    seed: int = 0
+    separate_process: bool = False
+
+    def __post_init__(self):
+        if self.members < 0:
+            raise ValueError(f'ensemble members: must be >= 0, got {self.members}')
+        validate_dispersion(self.dispersion)
+        if self.seed < 0:
+            raise ValueError(f'seed: must be >= 0, got {self.seed}')
+
+
+class EnsembleFailed(RuntimeError):
+    """The ensemble cannot go on (its worker process ended or its model stalled)."""
+
+
+@dataclass(frozen=True)
+class EnsembleResult:
+    """The ensemble after a tick.
+
+    step: model steps taken; time_s: its time (s); bit: shape (N, 6), columns BIT_FIELDS (SI);
+    touching_wall, lifted_off: how many members touch the borehole wall or have their bit
+    off the rock; events: restarts of diverged members; iterations_per_step: of the tick.
+    """
+
+    step: int
+    time_s: float
+    bit: np.ndarray
+    touching_wall: int
+    lifted_off: int
+    events: tuple[TwinEvent, ...]
+    iterations_per_step: float
+
+
+class LocalEnsemble:
+    """The ensemble integrated in this process (``collect`` does the work)."""
+
+    def __init__(self, config: DrillStringConfig, settings: EnsembleSettings, system):
+        germs = germs_for_realizations(settings.dispersion, settings.seed,
+                                       range(settings.members))
+        simulator = Simulator(config, members=settings.members, germs=germs, system=system)
+        self.guarded = GuardedSimulator(simulator, first_member=1, name='ensemble members')
+        self.step_index = 0
+        self._request = None
+        self.latest = self._result(0.0)
+
+    @property
+    def simulator(self) -> Simulator:
+        return self.guarded.simulator
+
+    def start(self, steps: int, top_drive_speed_rad_per_s: float, hook_load_n: float) -> None:
+        """Take a tick's work: ``steps`` model steps under these commands."""
+        self._request = (steps, top_drive_speed_rad_per_s, hook_load_n)
+
+    def collect(self) -> EnsembleResult:
+        """Do the pending tick's work, if any, and return the ensemble's latest result."""
+        if self._request is None:
+            return self.latest
+        steps, speed, hook = self._request
+        self._request = None
+        self.simulator.set_top_drive_speed(speed)
+        self.simulator.set_hook_load(hook)
+        iterations = 0
+        for _ in range(steps):
+            result = self.guarded.step()
+            if result is not None:
+                self.step_index += 1
+                iterations += result.iterations
+        self.latest = self._result(iterations / max(steps, 1))
+        return self.latest
+
+    def close(self) -> None:
+        pass
+
+    def _result(self, iterations_per_step: float) -> EnsembleResult:
+        o = self.simulator.observe(detailed=0)
+        bit = np.stack([getattr(o, name) for name in BIT_FIELDS], axis=1)
+        return EnsembleResult(step=self.step_index, time_s=o.time_s, bit=bit,
+                              touching_wall=int(o.in_contact.any(axis=1).sum()),
+                              lifted_off=int(o.lifted.sum()),
+                              events=tuple(self.guarded.take_events()),
+                              iterations_per_step=float(iterations_per_step))
+
+
+class EnsembleProcess:
+    """The ensemble integrated in a worker process, one tick ahead of ``collect``.
+
+    The worker is ``python -m drill_twin.twin.ensemble_worker`` (a fresh interpreter: nothing
+    of this process, its main module or its ROS context is inherited) talking over a socket
+    pair; it ignores SIGINT (a Ctrl-C reaches the whole process group; the parent decides
+    when to stop) and ends when told, or when the parent's end of the socket closes.
+    """
+
+    def __init__(self, config: DrillStringConfig, settings: EnsembleSettings, system):
+        ours, theirs = socket.socketpair()
+        environment = dict(os.environ, **SINGLE_THREADED_BLAS)
+        package_root = str(Path(__file__).resolve().parents[2])
+        environment['PYTHONPATH'] = os.pathsep.join(
+            filter(None, [package_root, os.environ.get('PYTHONPATH')]))
+        try:
+            self._process = subprocess.Popen(
+                [sys.executable, '-m', 'drill_twin.twin.ensemble_worker',
+                 str(theirs.fileno())], pass_fds=[theirs.fileno()], env=environment,
+                stdin=subprocess.DEVNULL)
+        finally:
+            theirs.close()
+        self._connection = multiprocessing.connection.Connection(ours.detach())
+        self._pending = False
+        try:
+            self._connection.send((config, settings, system))
+            self.latest = self._receive(WORKER_START_TIMEOUT_S)
+        except (EnsembleFailed, OSError) as error:
+            self.close()
+            raise EnsembleFailed(str(error)) from None
+
+    def start(self, steps: int, top_drive_speed_rad_per_s: float, hook_load_n: float) -> None:
+        try:
+            self._connection.send((steps, top_drive_speed_rad_per_s, hook_load_n))
+        except OSError as error:
+            raise EnsembleFailed(self._ended(error)) from None
+        self._pending = True
+
+    def collect(self) -> EnsembleResult:
+        if self._pending:
+            self._pending = False
+            self.latest = self._receive(WORKER_REPLY_TIMEOUT_S)
+        return self.latest
+
+    def _receive(self, timeout_s: float) -> EnsembleResult:
+        try:
+            if not self._connection.poll(timeout_s):
+                raise EnsembleFailed(f'the ensemble worker did not answer within '
+                                     f'{timeout_s:g} s')
+            status, payload = self._connection.recv()
+        except (EOFError, OSError) as error:
+            raise EnsembleFailed(self._ended(error)) from None
+        if status != 'ok':
+            raise EnsembleFailed(f'the ensemble worker failed: {payload}')
+        return payload
+
+    def _ended(self, error) -> str:
+        try:
+            code = self._process.wait(timeout=1.0)
+        except subprocess.TimeoutExpired:
+            return f'lost the ensemble worker process ({type(error).__name__})'
+        return f'the ensemble worker process ended (exit code {code})'
+
+    def close(self) -> None:
+        """Stop the worker (politely, then by force) and release the socket."""
+        if self._process.poll() is None:
+            try:
+                self._connection.send(None)
+            except OSError:
+                pass
+            try:
+                self._process.wait(timeout=2.0)
+            except subprocess.TimeoutExpired:
+                self._process.kill()
+                self._process.wait(timeout=2.0)
+        self._connection.close()
+
+
+def serve(connection) -> None:
+    """The worker's loop: build the ensemble, then one result per request."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        config, settings, system = connection.recv()
+        with threadpool_limits(limits=1, user_api='blas'):
+            ensemble = LocalEnsemble(config, settings, system)
+            connection.send(('ok', ensemble.latest))
+            while True:
+                try:
+                    request = connection.recv()
+                except EOFError:
+                    return
+                if request is None:
+                    return
+                ensemble.start(*request)
+                connection.send(('ok', ensemble.collect()))
+    except (EOFError, OSError):
+        return
+    except Exception as error:                     # reported to the parent, which goes on
+        try:
+            connection.send(('error', f'{type(error).__name__}: {error}'))
+        except OSError:
+            pass
+
+
+def open_ensemble(config: DrillStringConfig, settings: EnsembleSettings, system):
+    """The ensemble of ``settings`` (None without members), here or in a worker process."""
+    if settings.members == 0:
+        return None
+    kind = EnsembleProcess if settings.separate_process else LocalEnsemble
+    return kind(config, settings, system)
