@@ -343,6 +343,8 @@ def test_wrench_stations_contacts_kpis(recorded):
     assert values['members'] == '5' and values['resets'] == '0'
     assert values['rejected_commands'] == '1'
     assert float(values['real_time_factor']) > 0 and float(values['tick_time_ms']) > 0
+    assert float(values['ensemble_tick_time_ms']) > 0
+    assert float(values['ensemble_iterations_per_step']) >= 1
 
 
 # -- 3. ensemble bounds ----------------------------------------------------------------------
@@ -358,6 +360,9 @@ def test_ensemble_bounds_contain_the_mean(recorded):
     assert all(len(by_stamp[s]) == 3 for s in stamps), 'a mean without its bounds'
     assert len(stamps) >= DURATION_S * 10 - 1
     assert max(np.diff([0] + stamps)) <= 100_000_000             # >= 10 Hz of twin time
+    # Published every 10th tick (twin time 0.1 s, 0.2 s, ... from 0 in fast mode), stamped
+    # with the ensemble's own time, one 10 ms tick behind the mean model.
+    assert all(s % 100_000_000 == 90_000_000 for s in stamps)
     for s in stamps:
         triple = by_stamp[s]
         for field in ('position', 'velocity', 'effort'):

@@ -271,6 +271,7 @@ class TwinNode(Node):
                   'tick_period_ms': f'{1e3 * self.tick_s:.2f}',
                   'iterations_per_step': f'{h["iterations_per_step"]:.2f}',
                   'ensemble_iterations_per_step': f'{h["ensemble_iterations_per_step"]:.2f}',
+                  'ensemble_tick_time_ms': f'{1e3 * h["ensemble_tick_wall_time_s"]:.2f}',
                   'members': h['members'], 'resets': h['resets'],
                   'rejected_commands': h['rejected_commands'],
                   'ensemble_members_touching_wall': h['ensemble_members_touching_wall'],

@@ -288,6 +288,7 @@ class TwinEngine:
             'tick_wall_time_max_s': float(wall.max()),
             'iterations_per_step': float(np.mean(self._iterations)) if self._iterations else 0.0,
             'ensemble_iterations_per_step': ensemble.iterations_per_step if ensemble else 0.0,
+            'ensemble_tick_wall_time_s': ensemble.wall_s if ensemble else 0.0,
             'resets': self.resets,
             'rejected_commands': self.rejected_commands,
             'ensemble_members_touching_wall': ensemble.touching_wall if ensemble else 0,

@@ -19,6 +19,7 @@ import signal
 import socket
 import subprocess
 import sys
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -71,7 +72,8 @@ class EnsembleResult:
 
     step: model steps taken; time_s: its time (s); bit: shape (N, 6), columns BIT_FIELDS (SI);
     touching_wall, lifted_off: how many members touch the borehole wall or have their bit
-    off the rock; events: restarts of diverged members; iterations_per_step: of the tick.
+    off the rock; events: restarts of diverged members; iterations_per_step: of the tick;
+    wall_s: the wall time the tick's steps took (s).
     """
 
     step: int
@@ -81,6 +83,7 @@ class EnsembleResult:
     lifted_off: int
     events: tuple[TwinEvent, ...]
     iterations_per_step: float
+    wall_s: float = 0.0
 
 
 class LocalEnsemble:
@@ -107,6 +110,7 @@ class LocalEnsemble:
         """Do the pending tick's work, if any, and return the ensemble's latest result."""
         if self._request is None:
             return self.latest
+        start = time.perf_counter()
         steps, speed, hook = self._request
         self._request = None
         self.simulator.set_top_drive_speed(speed)
@@ -117,20 +121,21 @@ class LocalEnsemble:
             if result is not None:
                 self.step_index += 1
                 iterations += result.iterations
-        self.latest = self._result(iterations / max(steps, 1))
+        self.latest = self._result(iterations / max(steps, 1), time.perf_counter() - start)
         return self.latest
 
     def close(self) -> None:
         pass
 
-    def _result(self, iterations_per_step: float) -> EnsembleResult:
+    def _result(self, iterations_per_step: float, wall_s: float = 0.0) -> EnsembleResult:
         o = self.simulator.observe(detailed=0)
         bit = np.stack([getattr(o, name) for name in BIT_FIELDS], axis=1)
         return EnsembleResult(step=self.step_index, time_s=o.time_s, bit=bit,
                               touching_wall=int(o.in_contact.any(axis=1).sum()),
                               lifted_off=int(o.lifted.sum()),
                               events=tuple(self.guarded.take_events()),
-                              iterations_per_step=float(iterations_per_step))
+                              iterations_per_step=float(iterations_per_step),
+                              wall_s=float(wall_s))
 
 
 class EnsembleProcess:
