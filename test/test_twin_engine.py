@@ -80,6 +80,22 @@ def test_an_ensemble_in_a_worker_process_computes_the_same_numbers(config):
             worker.close()
 
 
+def test_a_worker_that_cannot_start_leaves_the_ensemble_in_this_process(config, monkeypatch):
+    from drill_twin.twin import ensemble
+
+    monkeypatch.setattr(ensemble, 'WORKER_MODULE', 'drill_twin.no_such_module')
+    with threadpool_limits(limits=1, user_api='blas'):
+        engine = TwinEngine(config, EnsembleSettings(members=2, dispersion=0.01, seed=1,
+                                                     separate_process=True))
+        first = engine.advance(1)
+        snapshot = engine.advance(1)
+    (event,) = first.events
+    assert event.kind == 'ensemble_failed' and event.level == 'warn'
+    assert 'exit code 1' in event.message and 'runs in this process' in event.message
+    assert isinstance(engine.ensemble_runner, ensemble.LocalEnsemble)
+    assert snapshot.ensemble_step == 1 and snapshot.ensemble_mean is not None
+
+
 def test_a_lost_worker_drops_the_ensemble_and_the_mean_model_goes_on(config):
     with threadpool_limits(limits=1, user_api='blas'):
         engine = TwinEngine(config, EnsembleSettings(members=2, dispersion=0.01, seed=1,

@@ -9,7 +9,8 @@ lift-offs of the mean model, keeps drilling indicators over a moving window, and
 :class:`TwinSnapshot`. A member that diverges is restarted from a safe state (its depth kept),
 the step is retried once, and the reset is reported; nothing from a failed step is returned.
 If the mean model keeps failing even from the safe state the engine raises TwinStalled rather
-than let the twin's clock stand still; an ensemble that fails is dropped with an error event
+than let the twin's clock stand still; an ensemble worker that cannot start is replaced by an
+in-process ensemble (a warning event), one that fails later is dropped with an error event
 and the mean model goes on. The mean model does not depend on the ensemble: the same commands
 give the same mean model with any ensemble, or none.
 """
@@ -26,7 +27,7 @@ from drill_twin.config.schema import DrillStringConfig
 from drill_twin.dynamics import kpi
 from drill_twin.dynamics.simulator import Observation, Simulator
 from drill_twin.twin.ensemble import (EnsembleFailed, EnsembleResult, EnsembleSettings,
-                                      open_ensemble)
+                                      LocalEnsemble, open_ensemble)
 from drill_twin.twin.stepping import (MAX_CONSECUTIVE_FAILURES, GuardedSimulator, TwinEvent,
                                       TwinStalled)
 
@@ -117,7 +118,13 @@ class TwinEngine:
         self._wall_per_tick = deque(maxlen=100)
         self._iterations = deque(maxlen=100)
         self.rejected_commands = 0
-        self.ensemble_runner = open_ensemble(config, ensemble, self.simulator.system)
+        try:
+            self.ensemble_runner = open_ensemble(config, ensemble, self.simulator.system)
+        except EnsembleFailed as error:
+            self.ensemble_runner = LocalEnsemble(config, ensemble, self.simulator.system)
+            self._events.append(TwinEvent(
+                'ensemble_failed', 'warn', 0.0,
+                f'{error}; the ensemble runs in this process instead'))
         self._ensemble_latest: EnsembleResult | None = (
             self.ensemble_runner.latest if self.ensemble_runner else None)
         self._ensemble_resets = 0

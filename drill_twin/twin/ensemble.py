@@ -39,6 +39,9 @@ BIT_FIELDS = ('depth_m', 'rop_m_per_s', 'weight_on_bit_n', 'angle_rad', 'speed_r
 WORKER_START_TIMEOUT_S = 120.0
 """How long a worker process may take to import and start (s)."""
 
+WORKER_MODULE = 'drill_twin.twin.ensemble_worker'
+"""What the worker process runs (``python -m WORKER_MODULE FD``)."""
+
 WORKER_REPLY_TIMEOUT_S = 60.0
 """How long a worker process may take over one tick before it is taken for lost (s)."""
 
@@ -155,19 +158,21 @@ class EnsembleProcess:
             filter(None, [package_root, os.environ.get('PYTHONPATH')]))
         try:
             self._process = subprocess.Popen(
-                [sys.executable, '-m', 'drill_twin.twin.ensemble_worker',
-                 str(theirs.fileno())], pass_fds=[theirs.fileno()], env=environment,
+                [sys.executable, '-m', WORKER_MODULE, str(theirs.fileno())], pass_fds=[theirs.fileno()], env=environment,
                 stdin=subprocess.DEVNULL)
         finally:
             theirs.close()
         self._connection = multiprocessing.connection.Connection(ours.detach())
         self._pending = False
         try:
-            self._connection.send((config, settings, system))
+            try:
+                self._connection.send((config, settings, system))
+            except OSError as error:
+                raise EnsembleFailed(self._ended(error)) from None
             self.latest = self._receive(WORKER_START_TIMEOUT_S)
-        except (EnsembleFailed, OSError) as error:
+        except EnsembleFailed:
             self.close()
-            raise EnsembleFailed(str(error)) from None
+            raise
 
     def start(self, steps: int, top_drive_speed_rad_per_s: float, hook_load_n: float) -> None:
         try:
