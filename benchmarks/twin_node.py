@@ -12,7 +12,8 @@ Measured per tick: the timer callback's duration (the model's ``advance`` plus m
 publishing and logging; the model part separately) and the period between callback starts.
 Prints the sustained real-time factor (simulated / wall), mean/p50/p99/max tick time, the
 margin 10 ms - p99 (the tick budget at 100 Hz), the period jitter, and the CPU use of the
-node's process and of the ensemble worker (in cores). The first ``--warm-up`` seconds of each run are left out. Not part of the test suite.
+node's process and of the ensemble worker (in cores). The first ``--warm-up`` seconds of
+each run are left out. Not part of the test suite.
 """
 from __future__ import annotations
 

@@ -153,12 +153,15 @@ class EnsembleProcess:
     def __init__(self, config: DrillStringConfig, settings: EnsembleSettings, system):
         ours, theirs = socket.socketpair()
         environment = dict(os.environ, **SINGLE_THREADED_BLAS)
+        # The worker must import this very drill_twin, even when it was put on sys.path by
+        # hand; last, so that it shadows nothing of the caller's PYTHONPATH.
         package_root = str(Path(__file__).resolve().parents[2])
         environment['PYTHONPATH'] = os.pathsep.join(
-            filter(None, [package_root, os.environ.get('PYTHONPATH')]))
+            filter(None, [os.environ.get('PYTHONPATH'), package_root]))
         try:
             self._process = subprocess.Popen(
-                [sys.executable, '-m', WORKER_MODULE, str(theirs.fileno())], pass_fds=[theirs.fileno()], env=environment,
+                [sys.executable, '-m', WORKER_MODULE, str(theirs.fileno())],
+                pass_fds=[theirs.fileno()], env=environment,
                 stdin=subprocess.DEVNULL)
         finally:
             theirs.close()
