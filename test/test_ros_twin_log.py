@@ -182,7 +182,11 @@ def test_signal_completes_the_log(env, tmp_path, signal_number):
     assert reader.is_complete(path)
     stamps = bit_stamps(path)
     assert len(stamps) >= seen
-    assert all(b - a == 10_000_000 for a, b in zip(stamps, stamps[1:]))
+    # One bit state a 10 ms tick; a tick that catches up after a stall of the machine takes
+    # (and stamps) two steps.
+    gaps = [b - a for a, b in zip(stamps, stamps[1:])]
+    assert set(gaps) <= {10_000_000, 20_000_000}
+    assert gaps.count(10_000_000) >= 0.9 * len(gaps)
     assert started_ns < stamps[0] and stamps[-1] < stopped_ns    # the ROS clock, real time
     assert reader.read_metadata(path)['drill_twin']['fast'] == 'false'
     topics = reader.topics(path)

@@ -256,6 +256,35 @@ def _finite(values) -> bool:
     return bool(np.all(np.isfinite(np.asarray(values, dtype=float))))
 
 
+def test_the_twin_catches_up_with_the_wall_clock_after_a_stall(twin_factory):
+    """Real-time pacing: a tick held up for 0.3 s (a stall of the machine) makes the ROS timer
+    skip the periods it missed; the next ticks take one extra step each until the twin's
+    clock is back with the ROS clock, and the health status says it fell behind."""
+    from diagnostic_msgs.msg import DiagnosticStatus
+
+    twin = twin_factory(fast=False, ensemble_members=0, health_rate_hz=10.0)
+    node = twin.node
+    twin.spin_until(lambda: node.engine.time_s > 0.5 and node._steps_behind_wall_clock() <= 1,
+                    'the twin in step with the wall clock')
+    advance, steps = node.engine.advance, []
+
+    def stalled_once(count):
+        if not steps:
+            time.sleep(0.3)
+        steps.append(count)
+        return advance(count)
+
+    node.engine.advance = stalled_once
+    twin.spin_until(lambda: len(steps) > 1 and node._steps_behind_wall_clock() <= 1,
+                    'the twin caught up')
+    assert steps[0] == 1 and set(steps) == {1, 2}
+    assert 20 <= steps.count(2) <= 45                  # the ~30 steps missed, one a tick
+    lagging = [s for s in twin.statuses('drill_twin: twin health')
+               if int({kv.key: kv.value for kv in s.values}['behind_wall_clock_ms']) > 100]
+    assert lagging and all(s.level == DiagnosticStatus.WARN for s in lagging)
+    assert all(s.message == 'falling behind real time' for s in lagging)
+
+
 def test_joint_states_are_well_formed(recorded):
     received = recorded['received']
     for topic, frame, joints in ((itf.BIT_STATE, itf.FRAME_BIT, [itf.BIT_AXIAL, itf.BIT_ROTATION]),

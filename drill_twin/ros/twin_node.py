@@ -1,8 +1,10 @@
 """The twin as an rclpy node: a thin boundary around :class:`~drill_twin.twin.engine.TwinEngine`.
 
 A timer (``rate_hz``, 100 Hz by default) advances the engine by 1 / rate_hz of simulated time
-in model sub-steps and publishes the results; with ``fast`` or ``use_sim_time`` it ticks as
-fast as it can and publishes /clock. Commands arrive on two Float64 topics and take effect on
+in model sub-steps and publishes the results. A timer that fires late skips the periods it
+missed, so a tick that finds the twin's clock behind the wall clock (a stall of the machine)
+takes extra steps, at most as many again as a tick's, until it has caught up. With ``fast``
+or ``use_sim_time`` it ticks as fast as it can and publishes /clock. Commands arrive on two Float64 topics and take effect on
 the next model step. Every published message, the commands as applied and the twin's own log
 lines are recorded to an MCAP log. Header stamps, /clock and the log times use the twin's
 clock: the ROS time at start plus the simulated time (from zero in fast mode).
@@ -90,9 +92,9 @@ class TwinNode(Node):
             self.substeps = max(1, round(1.0 / (p['rate_hz'] * dt)))
             self.tick_s = self.substeps * dt
             self.dt_ns = int(round(dt * 1e9))
-            self.epoch_ns = 0 if self.fast else self.get_clock().now().nanoseconds
             self.stations_m = [s.x_m for s in self.engine.simulator.system.stations]
             self.ticks = 0
+            self._pace_origin_ns = None
             self.failed = False
             self.done = Future()
             self._health_mark = (time.perf_counter(), 0.0)
@@ -103,6 +105,8 @@ class TwinNode(Node):
             self.create_subscription(Float64, itf.CMD_TOP_DRIVE_SPEED, self._on_top_drive_speed,
                                      command_qos)
             self.create_subscription(Float64, itf.CMD_HOOK_LOAD, self._on_hook_load, command_qos)
+            # The twin's clock starts as late as it can: the first tick should find it on time.
+            self.epoch_ns = 0 if self.fast else self.get_clock().now().nanoseconds
             self.log = self._open_log(p) if p['log_enabled'] else None
             self.timer = self.create_timer(FAST_PERIOD_S if self.fast else 1.0 / p['rate_hz'],
                                            self._on_tick)
@@ -201,8 +205,10 @@ class TwinNode(Node):
     def _on_tick(self) -> None:
         if self.done.done() or not self.context.ok():       # stopping: publish nothing more
             return
+        if self.ticks == 0:                 # the real-time factor counts from the first tick
+            self._health_mark = (time.perf_counter(), self.engine.time_s)
         try:
-            snapshot = self.engine.advance(self.substeps)
+            snapshot = self.engine.advance(self._steps_this_tick())
         except TwinStalled as error:
             self._report('error', f'{error}; stopping')
             self.failed = True
@@ -243,6 +249,25 @@ class TwinNode(Node):
             self._report('info', f'{duration:g} s simulated: stopping')
             self.done.set_result(True)
 
+    def _steps_this_tick(self) -> int:
+        """A tick's steps, plus up to as many again while the twin is behind the wall clock."""
+        if self.fast:
+            return self.substeps
+        if self._pace_origin_ns is None:            # the first tick sets the pace
+            self._pace_origin_ns = (self.get_clock().now().nanoseconds
+                                    - self.substeps * self.dt_ns)
+            return self.substeps
+        behind = self._steps_behind_wall_clock() - self.substeps
+        return self.substeps + min(max(behind, 0), self.substeps)
+
+    def _steps_behind_wall_clock(self) -> int:
+        """Whole model steps the twin has fallen behind the ROS clock since its first tick
+        (real-time mode; the start-up before the first tick does not count)."""
+        if self._pace_origin_ns is None:
+            return 0
+        elapsed = self.get_clock().now().nanoseconds - self._pace_origin_ns
+        return elapsed // self.dt_ns - self.engine.step_index
+
     def _due(self, rate_hz: float) -> bool:
         every = max(1, round(1.0 / (rate_hz * self.tick_s)))
         return self.ticks % every == 0
@@ -264,8 +289,10 @@ class TwinNode(Node):
         self._health_mark = (wall, simulated)
         factor = (simulated - previous_simulated) / max(wall - previous_wall, 1e-9)
         h = snapshot.health
-        behind = not self.fast and factor < 0.95
+        lag_s = 0.0 if self.fast else self._steps_behind_wall_clock() * self.engine.dt
+        behind = not self.fast and (factor < 0.95 or lag_s > 0.1)
         values = {'real_time_factor': f'{factor:.3f}', 'sim_time_s': f'{simulated:.3f}',
+                  'behind_wall_clock_ms': f'{1e3 * max(lag_s, 0.0):.0f}',
                   'tick_time_ms': f'{1e3 * h["tick_wall_time_s"]:.2f}',
                   'tick_time_max_ms': f'{1e3 * h["tick_wall_time_max_s"]:.2f}',
                   'tick_period_ms': f'{1e3 * self.tick_s:.2f}',
