@@ -67,15 +67,19 @@ def assert_complete_fast_run(path: Path, duration_s: float) -> None:
 
 # -- 10. the command line -------------------------------------------------------------------
 
-def test_cli_fast_run_leaves_a_log(env, tmp_path):
+@pytest.mark.parametrize('in_process', [False, True], ids=['worker', 'in_process'])
+def test_cli_fast_run_leaves_a_log(env, tmp_path, in_process):
     result = run([DRILL_TWIN, 'twin', '--duration', '1', '--fast', '--ensemble', '2',
-                  '--seed', '4', '--log-dir', str(tmp_path / 'logs')], env)
+                  '--seed', '4', '--log-dir', str(tmp_path / 'logs')]
+                 + (['--ensemble-in-process'] if in_process else []), env)
     assert result.returncode == 0, result.stderr
     assert 'Traceback' not in result.stderr
     path = the_log(tmp_path / 'logs')
     assert_complete_fast_run(path, 1.0)
     metadata = reader.read_metadata(path)['drill_twin']
     assert metadata['seed'] == '4' and metadata['ensemble_members'] == '2'
+    assert metadata['ensemble_process'] == str(not in_process).lower()
+    assert len(list(reader.iter_messages(path, [itf.ENSEMBLE_MEAN]))) == 10
 
 
 def test_cli_bad_override_is_one_line_and_status_2(env, tmp_path):

@@ -31,6 +31,9 @@ def add_parser(subparsers) -> None:
     parser.add_argument('--ensemble', type=int, metavar='N', help='ensemble members (default 16)')
     parser.add_argument('--delta', type=float, help='dispersion of the ensemble (default 0.01)')
     parser.add_argument('--seed', type=int, help='seed of the ensemble (default 0)')
+    parser.add_argument('--ensemble-in-process', action='store_true',
+                        help='integrate the ensemble in the node\'s process instead of a '
+                             'worker process (one-core machines)')
     parser.set_defaults(run=run)
 
 
@@ -66,6 +69,8 @@ def ros_arguments(args: argparse.Namespace) -> list[str]:
         set_parameter('ensemble_dispersion', float(args.delta))
     if args.seed is not None:
         set_parameter('seed', args.seed)
+    if args.ensemble_in_process:
+        set_parameter('ensemble_process', False)
     return ros + list(getattr(args, 'ros_args', []))
 
 

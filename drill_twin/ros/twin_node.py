@@ -166,6 +166,7 @@ class TwinNode(Node):
             counter += 1
         metadata = {'version': __version__, 'ensemble_members': str(p['ensemble_members']),
                     'ensemble_dispersion': repr(p['ensemble_dispersion']),
+                    'ensemble_process': str(p['ensemble_process']).lower(),
                     'rate_hz': repr(p['rate_hz']), 'substeps': str(self.substeps),
                     'time_step_s': repr(self.engine.dt), 'fast': str(self.fast).lower(),
                     'clock_epoch_ns': str(self.epoch_ns), 'kpi_window_s': repr(p['kpi_window_s'])}
