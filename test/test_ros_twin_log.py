@@ -154,30 +154,51 @@ def _readable_messages(folder: Path) -> int:
     return sum(1 for _ in reader.iter_messages(logs[0], [itf.BIT_STATE]))
 
 
-@pytest.mark.parametrize('signal_number', [signal.SIGTERM, signal.SIGINT],
-                         ids=['SIGTERM', 'SIGINT'])
-def test_signal_completes_the_log(env, tmp_path, signal_number):
+def _group_alive(group: int) -> bool:
+    try:
+        os.killpg(group, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+@pytest.mark.parametrize('signal_number, to_group', [
+    (signal.SIGTERM, False), (signal.SIGINT, False), (signal.SIGINT, True)],
+    ids=['SIGTERM', 'SIGINT', 'SIGINT-to-the-process-group'])
+def test_signal_completes_the_log(env, tmp_path, signal_number, to_group):
     """Real time (100 Hz), stopped by a signal once its log holds messages: exit status 0,
-    no traceback, and a complete log stamped with the ROS time of the run."""
+    no traceback, and a complete log stamped with the ROS time of the run. A Ctrl-C in a
+    terminal signals the whole process group, the ensemble worker too: it leaves the stopping
+    to the node, and no process of the group outlives the node."""
     logs = tmp_path / 'logs'
     stderr_path = tmp_path / 'stderr.txt'
     started_ns = time.time_ns()
     with open(stderr_path, 'w') as stderr:
         process = subprocess.Popen([DRILL_TWIN, 'twin', '--ensemble', '2', '--log-dir',
                                     str(logs)], env=env, cwd=REPO, stdin=subprocess.DEVNULL,
-                                   stdout=subprocess.DEVNULL, stderr=stderr)
+                                   stdout=subprocess.DEVNULL, stderr=stderr,
+                                   start_new_session=True)
     try:
         deadline = time.monotonic() + WAIT_S
         while (seen := _readable_messages(logs)) == 0:
             assert process.poll() is None, stderr_path.read_text()
             assert time.monotonic() < deadline, 'no messages in the log'
             time.sleep(0.2)
-        process.send_signal(signal_number)
+        if to_group:
+            os.killpg(process.pid, signal_number)
+        else:
+            process.send_signal(signal_number)
         status = process.wait(timeout=WAIT_S)
+        deadline = time.monotonic() + 5.0
+        while _group_alive(process.pid):
+            assert time.monotonic() < deadline, 'a process of the twin outlived it'
+            time.sleep(0.05)
     finally:
         if process.poll() is None:
             process.kill()
             process.wait()
+        if _group_alive(process.pid):
+            os.killpg(process.pid, signal.SIGKILL)
     stopped_ns = time.time_ns()
     errors = stderr_path.read_text()
     assert status == 0, errors
