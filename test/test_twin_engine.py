@@ -176,3 +176,12 @@ def test_bad_commands_are_rejected_and_the_last_valid_stays(config, setter, valu
     assert engine.top_drive_speed_command == 4.0 and engine.hook_load_command == 1.0e6
     (event,) = engine.snapshot().events
     assert event.kind == 'command_rejected' and 'previous command stays' in event.message
+
+
+def test_ensemble_columns_are_the_bit_state_fields():
+    import dataclasses
+
+    from drill_twin.twin.engine import BitState
+    from drill_twin.twin.ensemble import BIT_FIELDS
+
+    assert tuple(f.name for f in dataclasses.fields(BitState)) == BIT_FIELDS

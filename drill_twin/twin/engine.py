@@ -26,8 +26,8 @@ import numpy as np
 from drill_twin.config.schema import DrillStringConfig
 from drill_twin.dynamics import kpi
 from drill_twin.dynamics.simulator import Observation, Simulator
-from drill_twin.twin.ensemble import (EnsembleFailed, EnsembleResult, EnsembleSettings,
-                                      LocalEnsemble, open_ensemble)
+from drill_twin.twin.ensemble import (BIT_FIELDS, EnsembleFailed, EnsembleResult,
+                                      EnsembleSettings, LocalEnsemble, open_ensemble)
 from drill_twin.twin.stepping import (MAX_CONSECUTIVE_FAILURES, GuardedSimulator, TwinEvent,
                                       TwinStalled)
 
@@ -234,8 +234,7 @@ class TwinEngine:
             return
         if latest is not self._ensemble_latest:
             self._events.extend(latest.events)
-            self._ensemble_resets += sum(len(e.values['members'].split())
-                                         for e in latest.events if e.kind == 'diverged')
+            self._ensemble_resets = latest.resets
         self._ensemble_latest = latest
 
     def _watch(self, before, now) -> None:
@@ -268,9 +267,7 @@ class TwinEngine:
 
     def snapshot(self) -> TwinSnapshot:
         o = self._last
-        bit = BitState(float(o.depth_m[0]), float(o.rop_m_per_s[0]),
-                       float(o.weight_on_bit_n[0]), float(o.angle_rad[0]),
-                       float(o.speed_rad_per_s[0]), float(o.torque_on_bit_nm[0]))
+        bit = BitState(*(float(getattr(o, name)[0]) for name in BIT_FIELDS))
         mean = lower = upper = ensemble_step = ensemble_time = None
         ensemble = self._ensemble_latest
         if ensemble is not None:

@@ -75,8 +75,8 @@ class EnsembleResult:
 
     step: model steps taken; time_s: its time (s); bit: shape (N, 6), columns BIT_FIELDS (SI);
     touching_wall, lifted_off: how many members touch the borehole wall or have their bit
-    off the rock; events: restarts of diverged members; iterations_per_step: of the tick;
-    wall_s: the wall time the tick's steps took (s).
+    off the rock; events: restarts of diverged members; resets: members restarted so far;
+    iterations_per_step: of the tick; wall_s: the wall time the tick's steps took (s).
     """
 
     step: int
@@ -85,6 +85,7 @@ class EnsembleResult:
     touching_wall: int
     lifted_off: int
     events: tuple[TwinEvent, ...]
+    resets: int
     iterations_per_step: float
     wall_s: float = 0.0
 
@@ -137,6 +138,7 @@ class LocalEnsemble:
                               touching_wall=int(o.in_contact.any(axis=1).sum()),
                               lifted_off=int(o.lifted.sum()),
                               events=tuple(self.guarded.take_events()),
+                              resets=self.guarded.resets,
                               iterations_per_step=float(iterations_per_step),
                               wall_s=float(wall_s))
 

@@ -19,9 +19,7 @@ from drill_twin import interface as itf
 from drill_twin.config import build_config
 from drill_twin.recording.reader import iter_messages, read_metadata
 from drill_twin.twin.engine import CommandLimits, EnsembleSettings, TwinEngine
-
-FIELDS = ('depth_m', 'rop_m_per_s', 'weight_on_bit_n', 'angle_rad', 'speed_rad_per_s',
-          'torque_on_bit_nm')
+from drill_twin.twin.ensemble import BIT_FIELDS as FIELDS
 ENSEMBLE_TOPICS = {itf.ENSEMBLE_MEAN: 'ensemble_mean', itf.ENSEMBLE_LOWER: 'ensemble_lower',
                    itf.ENSEMBLE_UPPER: 'ensemble_upper'}
 
