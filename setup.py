@@ -28,12 +28,14 @@ setup(
         'rerun-sdk>=0.41',
         'dask[distributed]>=2024.1',
         'threadpoolctl>=3.1',
+        'numba>=0.59',
     ],
     extras_require={
         # rclpy and the message packages come from ROS on a ROS machine; without ROS
         # they come from PyPI's ROS wheels.
         'ros': ['ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces'],
-        'test': ['pytest>=7', 'pytest-timeout', 'sympy>=1.12', 'wheel', 'pandas'],
+        'test': ['pytest>=7', 'pytest-timeout', 'sympy>=1.12', 'wheel', 'pandas', 'hypothesis>=6',
+                 'rosbags>=0.10'],
     },
     zip_safe=True,
     maintainer='drill_twin developers',
