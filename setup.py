@@ -13,6 +13,7 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/config', sorted(glob('config/*.yaml'))),
+        ('share/' + package_name + '/launch', sorted(glob('launch/*.launch.py'))),
         # `ros2 run drill_twin twin` looks for an executable in lib/<package>/.
         ('lib/' + package_name, ['scripts/twin']),
     ],
