@@ -195,7 +195,7 @@ def test_cut_split_is_read_up_to_its_last_complete_chunk(killed_bag):
                 prefix.append(message.log_time)
         except Exception:                                 # noqa: B902 - the cut-off tail
             pass
-    assert prefix
+    assert len(prefix) >= 300                 # the 4th split's messages 1500-1799, flushed
     ours = [m.log_time_ns for m in reader.iter_messages(cut)]
     assert ours == prefix
     # the whole bag through the project's reader: every message up to the cut, none twice

@@ -3,9 +3,9 @@
 The log is a bag directory or one of its MCAP files (see drill_twin.recording.reader). Its
 ``drill_twin`` metadata (:class:`~drill_twin.recording.log_metadata.TwinLogMetadata`, read
 with the code the node writes it with) holds the model configuration, the seed, the ensemble
-and the time step; the accepted commands are recorded at the twin time at which they took effect (the
-start of the next model step). Stepping a new engine and applying each command before the
-step that starts at its time reproduces the run: the mean model's bit state and the
+and the time step; the accepted commands are recorded at the twin time at which they took
+effect (the start of the next model step). Stepping a new engine and applying each command
+before the step that starts at its time reproduces the run: the mean model's bit state and the
 ensemble's mean and 2.5 % / 97.5 % bounds (drawn again from the recorded seed). With the same
 version of drill_twin both are identical bit for bit, whether the ensemble ran in the node's
 process or in a worker process (the re-run integrates it in this process).
