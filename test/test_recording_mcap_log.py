@@ -14,7 +14,8 @@ import yaml
 
 from drill_twin import interface as itf
 from drill_twin.recording import reader
-from drill_twin.recording.mcap_log import McapLog, TWIN_METADATA_NAME
+from drill_twin.recording.log_metadata import RECORD_NAME as TWIN_METADATA_NAME
+from drill_twin.recording.mcap_log import McapLog
 from drill_twin.recording.message_types import import_message_class
 from drill_twin.recording.recovery import recover_log
 from drill_twin.recording.schemas import ros2msg_schema, type_hash
@@ -39,7 +40,7 @@ def written(tmp_path_factory):
     with McapLog(path, chunk_size=8 * 1024) as log:
         for topic, spec in twin_topics(STATIONS_M).items():
             log.add_topic(topic, spec.type_name, spec.qos)
-        log.add_twin_metadata(CONFIG_YAML, 1234)
+        log.add_metadata(TWIN_METADATA_NAME, {'config': CONFIG_YAML, 'seed': '1234'})
         for i, item in enumerate(synthetic_messages(duration_s=1.0, rate_hz=20.0,
                                                     stations_m=STATIONS_M)):
             publish = item.log_time_ns - 1000 if i % 2 else None

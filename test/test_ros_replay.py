@@ -34,7 +34,8 @@ def _spin_until(executor, condition, timeout_s):
 
 @pytest.fixture(scope='module')
 def twin_log(ros, tmp_path_factory):
-    """A fast twin run with commands sent over DDS mid-run; returns the log path."""
+    """A fast twin run with commands sent over DDS mid-run, its log split every 2 s of twin
+    time; returns the log (the bag directory)."""
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
     from std_msgs.msg import Float64
@@ -49,7 +50,7 @@ def twin_log(ros, tmp_path_factory):
         node = TwinNode(parameter_overrides=[
             Parameter('fast', value=True), Parameter('log_dir', value=str(folder)),
             Parameter('ensemble_members', value=3), Parameter('seed', value=11),
-            Parameter('duration_s', value=4.0)])
+            Parameter('duration_s', value=4.0), Parameter('log_split_s', value=2.0)])
         probe = ros.create_node('probe')
         qos = rclpy_qos_profile(itf.STATE_QOS)
         speed = probe.create_publisher(Float64, itf.CMD_TOP_DRIVE_SPEED, qos)
@@ -71,9 +72,9 @@ def twin_log(ros, tmp_path_factory):
             executor.shutdown()
             node.destroy_node()
             probe.destroy_node()
-    paths = list(folder.glob('*.mcap'))
-    assert len(paths) == 1
-    return paths[0]
+    (bag,) = folder.iterdir()
+    assert len(list(bag.glob('*.mcap'))) == 3      # 0-2 s, 2-4 s, the last tick at 4 s
+    return bag
 
 
 def test_resimulation_reproduces_the_recorded_run(twin_log):
@@ -98,23 +99,37 @@ def test_resimulate_command(twin_log):
     assert '120 ensemble mean and bound states compared' in result.stdout
 
 
+def test_resimulate_the_first_split_alone(twin_log):
+    """One split file is a log too: its 2 s are reproduced from the metadata it carries."""
+    from drill_twin.recording.reader import log_files
+    from drill_twin.twin.resimulate import resimulate
+
+    first = log_files(twin_log)[0]
+    result = resimulate(first)
+    assert 190 <= result.compared < 400 and result.identical
+
+
 def _altered_log(twin_log, path, config_change=None, seed_change=0):
-    """A copy of ``twin_log`` whose recorded configuration or seed is altered."""
+    """A one-file copy of ``twin_log`` whose recorded configuration or seed is altered."""
+    import dataclasses
+
     import yaml
 
+    from drill_twin.recording.log_metadata import RECORD_NAME, TwinLogMetadata
     from drill_twin.recording.mcap_log import McapLog
     from drill_twin.recording.reader import iter_messages, read_metadata
     from drill_twin.recording.topics import twin_topics
 
-    metadata = dict(read_metadata(twin_log)['drill_twin'])
-    config = yaml.safe_load(metadata.pop('config'))
+    metadata = TwinLogMetadata.from_record(read_metadata(twin_log)[RECORD_NAME])
+    config = yaml.safe_load(metadata.config_yaml)
     if config_change:
         config_change(config)
-    seed = int(metadata.pop('seed')) + seed_change
+    metadata = dataclasses.replace(metadata, config_yaml=yaml.safe_dump(config),
+                                   seed=metadata.seed + seed_change)
     with McapLog(path) as log:
         for topic, spec in twin_topics([700.0, 1590.0]).items():
             log.add_topic(topic, spec.type_name, spec.qos)
-        log.add_twin_metadata(yaml.safe_dump(config), seed, metadata)
+        log.add_metadata(RECORD_NAME, metadata.to_record())
         for item in iter_messages(twin_log):
             log.write(item.topic, item.message, item.log_time_ns)
     return path
@@ -208,9 +223,17 @@ def test_view_writes_an_rrd_with_the_twin_entities(twin_log, tmp_path, ros):
         assert entity in text, entity
 
 
-def test_replay_errors(tmp_path):
+def test_replay_errors(tmp_path, capsys):
     missing = subprocess.run([sys.executable, '-m', 'drill_twin.cli.main', 'replay',
                               str(tmp_path / 'none.mcap')], capture_output=True, text=True,
                              cwd=REPO, timeout=60)
     assert missing.returncode == 2
     assert missing.stderr.strip() == f'drill-twin: {tmp_path / "none.mcap"}: no such file'
+    from drill_twin.cli.main import main
+
+    empty = tmp_path / 'empty_dir'
+    empty.mkdir()
+    for command in (['replay', str(empty), '--resimulate'], ['view', str(empty)]):
+        assert main(command) == 2
+        assert capsys.readouterr().err.splitlines() == [
+            f'drill-twin: {empty}: no MCAP files in it (not a log)']

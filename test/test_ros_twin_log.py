@@ -1,5 +1,6 @@
 """``drill-twin twin`` and the ``ros2 run`` launcher as processes: exit statuses, error lines,
-and the MCAP log they leave (complete after duration_s, SIGTERM and SIGINT).
+and the log they leave, a rosbag2 bag (complete after duration_s, SIGTERM and SIGINT; read by
+the project's reader and by rosbags).
 
 Each process runs on a random ROS domain, localhost only, with its ROS and rerun files in a
 temporary directory. Waits are loops on conditions with generous deadlines.
@@ -38,9 +39,21 @@ def run(command: list[str], env: dict, timeout_s: float = WAIT_S) -> subprocess.
 
 
 def the_log(folder: Path) -> Path:
-    logs = list(folder.glob('*.mcap'))
-    assert len(logs) == 1, logs
+    """The one bag directory in ``folder``."""
+    logs = list(folder.iterdir())
+    assert len(logs) == 1 and logs[0].is_dir(), logs
+    assert re.fullmatch(r'drill_twin_\d{8}T\d{6}Z', logs[0].name), logs[0].name
     return logs[0]
+
+
+def rosbags_count(path: Path, topic: str) -> int:
+    """Messages of ``topic`` in the bag, read and deserialised by rosbags."""
+    from rosbags.highlevel import AnyReader
+
+    with AnyReader([path]) as bag:
+        connections = [c for c in bag.connections if c.topic == topic]
+        return sum(1 for c, _, raw in bag.messages(connections=connections)
+                   if bag.deserialize(raw, c.msgtype) is not None)
 
 
 def bit_stamps(path: Path) -> list[int]:
@@ -63,6 +76,7 @@ def assert_complete_fast_run(path: Path, duration_s: float) -> None:
     assert rosout[-1] == f'{duration_s:g} s simulated: stopping'
     metadata = reader.read_metadata(path)['drill_twin']
     assert metadata['fast'] == 'true' and 'config' in metadata
+    assert rosbags_count(path, itf.BIT_STATE) == len(stamps)
 
 
 # -- 10. the command line -------------------------------------------------------------------
@@ -107,10 +121,11 @@ def test_unwritable_log_dir_with_on_log_error_exit(env, tmp_path):
 
 
 def test_log_write_failure_mid_run(env, tmp_path):
-    """The log hits the file-size limit (as a full disk would) after ~0.5 s: the twin runs
-    to the end, says so once as an ERROR through its ROS logger (so on /rosout), and leaves
-    the part it wrote readable. (Python ignores SIGXFSZ, so the write raises EFBIG.)"""
-    limit = 150_000
+    """The log hits the file-size limit (as a full disk would) after ~0.7 s: with
+    on_log_error: continue the twin runs to the end, says so once as an ERROR through its ROS
+    logger (so on /rosout), and leaves its bag readable. (Python ignores SIGXFSZ, so the
+    write raises EFBIG.) test_ros_log_failure checks /diagnostics and on_log_error: exit."""
+    limit = 40_000                  # zstd chunks: about 45 kB a second of twin time
 
     def limit_file_size():
         resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
@@ -123,12 +138,13 @@ def test_log_write_failure_mid_run(env, tmp_path):
     assert result.returncode == 0, result.stderr
     errors = [line for line in result.stderr.splitlines() if line.startswith('[ERROR]')]
     assert len(errors) == 1, result.stderr
-    assert re.fullmatch(r'\[ERROR\] \[[0-9.]+\] \[drill_twin\]: writing \S+\.mcap failed '
-                        r'\(\[Errno 27\] File too large\); the twin runs on without a log',
-                        errors[0]), errors[0]
+    assert re.fullmatch(r'\[ERROR\] \[[0-9.]+\] \[drill_twin\]: writing the log \S+_0\.mcap '
+                        r'failed \(\[Errno 27\] File too large\); the twin runs on without a '
+                        r'log \(on_log_error: continue\)', errors[0]), errors[0]
     assert result.stderr.splitlines()[-1].endswith('2 s simulated: stopping')
     path = the_log(logs)
-    assert path.stat().st_size <= limit and not reader.is_complete(path)
+    split = path / f'{path.name}_0.mcap'
+    assert split.stat().st_size <= limit and not reader.is_complete(path)
     assert len(bit_stamps_readable(path)) > 0
 
 
@@ -148,10 +164,10 @@ def test_ros2_run_launcher(env, tmp_path):
 
 def _readable_messages(folder: Path) -> int:
     """Bit-state messages readable so far from the (unfinished) log in ``folder``."""
-    logs = list(folder.glob('*.mcap'))
+    logs = list(folder.glob('*/*.mcap'))
     if not logs:
         return 0
-    return sum(1 for _ in reader.iter_messages(logs[0], [itf.BIT_STATE]))
+    return sum(1 for _ in reader.iter_messages(logs[0].parent, [itf.BIT_STATE]))
 
 
 def _group_alive(group: int) -> bool:
@@ -216,6 +232,7 @@ def test_signal_completes_the_log(env, tmp_path, signal_number, to_group):
     assert reader.read_metadata(path)['drill_twin']['fast'] == 'false'
     topics = reader.topics(path)
     assert {itf.BIT_STATE, itf.ENSEMBLE_MEAN, itf.DIAGNOSTICS, itf.ROSOUT} <= set(topics)
+    assert rosbags_count(path, itf.BIT_STATE) == len(stamps)
 
 
 SIGNAL_WHILE_STARTING = '''
@@ -257,6 +274,6 @@ def test_signal_while_starting(env, tmp_path, where, name):
     result = run([sys.executable, str(script), where, name, str(logs)], env)
     assert result.returncode == 0, result.stderr
     assert 'Traceback' not in result.stderr
-    for path in logs.glob('*.mcap'):
+    for path in logs.glob('*'):
         assert reader.is_complete(path)
     assert (where == 'timer') == logs.is_dir()

@@ -2,19 +2,20 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 from drill_twin.cli.common import UsageError
+from drill_twin.cli.log_path import existing_log, HELP
 
 
 def add_parser(subparsers) -> None:
     parser = subparsers.add_parser(
         'replay', help='republish a twin log, or re-simulate it',
-        description='Republish the topics of a twin MCAP log with their recorded timing '
-                    '(scaled by --rate), or with --resimulate re-run the twin on the '
+        description='Republish the topics of a twin log (bag directory or MCAP file) with '
+                    'their recorded timing (scaled by --rate), or with --resimulate re-run '
+                    'the twin on the '
                     'recorded commands and seed and report how far its bit state is from '
                     'the recorded one (zero for the same version of drill_twin).')
-    parser.add_argument('log', metavar='LOG.mcap')
+    parser.add_argument('log', metavar='LOG', help=HELP)
     parser.add_argument('--rate', type=float, default=1.0, help='playback speed factor')
     parser.add_argument('--delay', type=float, default=1.0, metavar='S',
                         help='wait S seconds before publishing, for subscribers to discover '
@@ -28,9 +29,7 @@ def add_parser(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    path = Path(args.log)
-    if not path.is_file():
-        raise UsageError(f'{path}: no such file')
+    path = existing_log(args.log)
     if not args.rate > 0:
         raise UsageError(f'--rate: must be positive, got {args.rate}')
     if args.resimulate:

@@ -2,26 +2,23 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
-from drill_twin.cli.common import UsageError
+from drill_twin.cli.log_path import existing_log, HELP
 
 
 def add_parser(subparsers) -> None:
     parser = subparsers.add_parser(
         'view', help='open a twin log in rerun',
-        description='Open an MCAP log of the twin in the rerun viewer with its blueprint (bit '
-                    'state, WOB/TOB, vibration, ensemble bounds, contacts, KPIs), or write a '
-                    'self-contained .rrd with --rrd.')
-    parser.add_argument('log', metavar='LOG.mcap')
+        description='Open a twin log (its bag directory or one MCAP file) in the rerun '
+                    'viewer with its blueprint (bit state, WOB/TOB, vibration, ensemble '
+                    'bounds, contacts, KPIs), or write a self-contained .rrd with --rrd.')
+    parser.add_argument('log', metavar='LOG', help=HELP)
     parser.add_argument('--rrd', metavar='OUT', help='write OUT.rrd instead of opening a viewer')
     parser.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    path = Path(args.log)
-    if not path.is_file():
-        raise UsageError(f'{path}: no such file')
+    path = existing_log(args.log)
     from drill_twin.recording import rerun_view
 
     if args.rrd:

@@ -1,4 +1,4 @@
-"""Recording layer of drill_twin: rosbag2-compatible MCAP logs and their rerun views.
+"""Recording layer of drill_twin: rosbag2 bags of MCAP files and their rerun views.
 
 Modules (none imports rclpy or rerun at import time):
 
@@ -6,13 +6,21 @@ Modules (none imports rclpy or rerun at import time):
 - :mod:`~drill_twin.recording.schemas` - 'ros2msg' schema texts and type hashes as rosbag2
   writes them;
 - :mod:`~drill_twin.recording.qos` - rosbag2's ``offered_qos_profiles`` YAML, rclpy QoS;
-- :mod:`~drill_twin.recording.mcap_log` - :class:`McapLog`, the writer;
-- :mod:`~drill_twin.recording.reader` - reading logs back (also truncated ones);
+- :mod:`~drill_twin.recording.mcap_log` - :class:`McapLog`, the writer of one MCAP file;
+- :mod:`~drill_twin.recording.bag` - the bag directory and its ``metadata.yaml``;
+- :mod:`~drill_twin.recording.bag_writer` - :class:`BagWriter`, a bag split by log time;
+- :mod:`~drill_twin.recording.log_metadata` - :class:`TwinLogMetadata`, the run description;
+- :mod:`~drill_twin.recording.twin_log` - the twin node's log;
+- :mod:`~drill_twin.recording.reader` - reading logs back (also cut ones);
+- :mod:`~drill_twin.recording.recovery` - making a cut file whole;
 - :mod:`~drill_twin.recording.rerun_view` - rerun blueprint, ``.rrd`` conversion, viewer.
 """
 
-from drill_twin.recording.mcap_log import McapLog, TWIN_METADATA_NAME
+from drill_twin.recording.bag_writer import BagWriter
+from drill_twin.recording.log_metadata import RECORD_NAME as TWIN_METADATA_NAME
+from drill_twin.recording.log_metadata import TwinLogMetadata
+from drill_twin.recording.mcap_log import McapLog
 from drill_twin.recording.reader import iter_messages, LogMessage, read_metadata, topics
 
-__all__ = ['iter_messages', 'LogMessage', 'McapLog', 'read_metadata', 'topics',
-           'TWIN_METADATA_NAME']
+__all__ = ['BagWriter', 'iter_messages', 'LogMessage', 'McapLog', 'read_metadata', 'topics',
+           'TWIN_METADATA_NAME', 'TwinLogMetadata']

@@ -1,9 +1,12 @@
-"""Read an MCAP log back: messages deserialized with rclpy, topics and metadata records.
+"""Read a twin log back: messages deserialized with rclpy, topics and metadata records.
 
-Reading goes through the file front to back (no index needed), so a file cut short by a
-crash yields every message of its complete chunks and stops quietly at the first record it
-cannot read (pass ``strict=True`` to get :class:`TruncatedLogError` instead).  Chunk CRCs
-are checked, so a half-written chunk is never decoded.
+A log is a rosbag2 bag directory (``metadata.yaml`` and MCAP splits, see
+:mod:`drill_twin.recording.bag`) or a single MCAP file. A bag is read split after split:
+those ``metadata.yaml`` lists, then any unlisted split (the one being written, or cut by a
+crash). Each file is read front to back with mcap's streaming reader (no index needed), so a
+file cut short yields every message of its complete chunks and stops quietly at the first
+record it cannot read (pass ``strict=True`` to get :class:`TruncatedLogError` instead).
+Chunk CRCs are checked, so a half-written chunk is never decoded.
 
 rclpy is imported by :func:`iter_messages` only.
 """
@@ -11,6 +14,7 @@ from __future__ import annotations
 
 import os
 import struct
+from pathlib import Path
 from typing import Any, Iterable, Iterator, NamedTuple
 
 from mcap.exceptions import McapError
@@ -20,6 +24,7 @@ from mcap.records import Channel, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 from mcap.writer import MCAP0_MAGIC
 
+from drill_twin.recording.bag import listed_splits, METADATA_FILE, split_files
 from drill_twin.recording.message_types import import_message_class
 
 try:
@@ -71,9 +76,34 @@ def iter_records(path: str | os.PathLike, *, emit_chunks: bool = False,
             yield record
 
 
+def log_files(path: str | os.PathLike) -> list[Path]:
+    """The MCAP files of a log (a bag directory or one file) in recording order.
+
+    Raises FileNotFoundError (one line) if ``path`` does not exist, is a directory without
+    MCAP files, or a split its ``metadata.yaml`` lists is missing; ValueError if that
+    ``metadata.yaml`` is unreadable.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f'{path}: no such file')
+    files = split_files(path)
+    if not files:
+        raise FileNotFoundError(f'{path}: no MCAP files in it (not a log)')
+    for file in files:
+        if not file.is_file():
+            raise FileNotFoundError(f'{file}: listed in {METADATA_FILE} but missing')
+    return files
+
+
 def iter_raw(path: str | os.PathLike, topics: Iterable[str] | None = None, *,
              strict: bool = False) -> Iterator[tuple[Schema | None, Channel, Message]]:
-    """Yield (schema, channel, message) records of the readable part of a log in order."""
+    """Yield (schema, channel, message) records of the readable part of a log in order
+    (every split of a bag in turn)."""
+    for file in log_files(path):
+        yield from _iter_raw_file(file, topics, strict)
+
+
+def _iter_raw_file(path, topics, strict: bool):
     wanted = None if topics is None else set(topics)
     schemas: dict[int, Schema] = {}
     channels: dict[int, Channel] = {}
@@ -133,7 +163,14 @@ def _summary(path: str | os.PathLike):
 
 
 def topics(path: str | os.PathLike) -> dict[str, str]:
-    """{topic: 'pkg/msg/Type'} of a log (from the summary, else by scanning the file)."""
+    """{topic: 'pkg/msg/Type'} of a log (every split's summary, else by scanning it)."""
+    found: dict[str, str] = {}
+    for file in log_files(path):
+        found.update(_file_topics(file))
+    return found
+
+
+def _file_topics(path) -> dict[str, str]:
     summary = _summary(path)
     if summary is not None and summary.channels:
         return {channel.topic: getattr(summary.schemas.get(channel.schema_id), 'name', '')
@@ -149,14 +186,28 @@ def topics(path: str | os.PathLike) -> dict[str, str]:
 
 
 def read_metadata(path: str | os.PathLike) -> dict[str, dict[str, str]]:
-    """{record name: {key: value}} of the metadata records of a log (later ones win)."""
+    """{record name: {key: value}} of the metadata records of a log (later ones win).
+
+    Every split of a bag carries the same records: the first split is read.
+    """
     result: dict[str, dict[str, str]] = {}
-    for record in iter_records(path, emit_chunks=True, strict=False):
+    for record in iter_records(log_files(path)[0], emit_chunks=True, strict=False):
         if isinstance(record, Metadata):
             result[record.name] = dict(record.metadata)
     return result
 
 
 def is_complete(path: str | os.PathLike) -> bool:
-    """Tell whether the log was finished (it has a readable footer and summary)."""
+    """Tell whether the log was finished: a file with a readable footer and summary, or a
+    bag whose ``metadata.yaml`` lists every one of its MCAP files, each complete."""
+    path = Path(path)
+    if path.is_dir():
+        if not (path / METADATA_FILE).is_file():
+            return False
+        try:
+            listed = listed_splits(path)
+        except ValueError:
+            return False
+        return (bool(listed) and split_files(path) == listed
+                and all(_summary(f) is not None for f in listed))
     return _summary(path) is not None

@@ -9,27 +9,36 @@ from __future__ import annotations
 import os
 
 from mcap.records import Channel, Header, Message, Metadata, Schema
-from mcap.writer import CompressionType, Writer
+from mcap.writer import CompressionType, MCAP0_MAGIC, Writer
 
 from drill_twin.recording.mcap_log import DEFAULT_CHUNK_SIZE, library_string, PROFILE
 from drill_twin.recording.reader import iter_records
+
+
+class NotMcapError(ValueError):
+    """The file to recover does not start with the MCAP magic (one line)."""
 
 
 def recover_log(source: str | os.PathLike, destination: str | os.PathLike) -> int:
     """Copy the readable records of ``source`` into a complete MCAP ``destination``.
 
     Schemas, channels (with their metadata), messages (times unchanged) and metadata
-    records are kept; the header's profile is kept.  Returns the number of messages copied.
+    records are kept; the header's profile is kept; chunks are zstd-compressed.  Returns
+    the number of messages copied.  Raises :class:`NotMcapError` if ``source`` is not an
+    MCAP file (nothing is written then).
     """
     if os.path.realpath(source) == os.path.realpath(destination):
         raise ValueError('recover_log needs a destination different from the source')
+    with open(source, 'rb') as stream:
+        if stream.read(len(MCAP0_MAGIC)) != MCAP0_MAGIC:
+            raise NotMcapError(f'{source}: not an MCAP file (no MCAP magic at its start)')
     schema_ids: dict[int, int] = {}
     channel_ids: dict[int, int] = {}
     schemas: dict[int, Schema] = {}
     pending_channels: dict[int, Channel] = {}
     copied = 0
     with open(destination, 'wb') as stream:
-        writer = Writer(stream, chunk_size=DEFAULT_CHUNK_SIZE, compression=CompressionType.NONE)
+        writer = Writer(stream, chunk_size=DEFAULT_CHUNK_SIZE, compression=CompressionType.ZSTD)
         started = False
         for record in iter_records(source):
             if isinstance(record, Header):

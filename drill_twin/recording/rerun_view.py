@@ -270,9 +270,10 @@ def _stations(mcap_path, stations_m):
 def save_rrd(mcap_path: str | os.PathLike, rrd_path: str | os.PathLike,
              stations_m: Sequence[float] | None = None, *, active_tab: int | str = 0,
              application_id: str = APPLICATION_ID) -> Path:
-    """Convert an MCAP log into a self-contained ``.rrd`` holding the twin's blueprint.
+    """Convert a twin log (an MCAP file or a bag directory of splits) into a self-contained
+    ``.rrd`` holding the twin's blueprint.
 
-    A log without footer (the recorder was killed) is first recovered into a temporary
+    A file without footer (the recorder was killed) is first recovered into a temporary
     complete copy (:func:`~drill_twin.recording.recovery.recover_log`), since rerun's
     importer needs the summary.
 
@@ -280,33 +281,36 @@ def save_rrd(mcap_path: str | os.PathLike, rrd_path: str | os.PathLike,
     :param active_tab: index or name (see :data:`TABS`) of the tab shown first.
     :returns: the ``.rrd`` path.
     """
-    from drill_twin.recording.reader import is_complete
+    from drill_twin.recording.reader import is_complete, log_files
     from drill_twin.recording.recovery import recover_log
 
     mcap_path, rrd_path = Path(mcap_path), Path(rrd_path)
-    if not mcap_path.is_file():
+    if not mcap_path.exists():
         raise FileNotFoundError(mcap_path)
+    files = log_files(mcap_path)
     stations = _stations(mcap_path, stations_m)
-    if is_complete(mcap_path):
-        _write_rrd(mcap_path, rrd_path, stations, active_tab, application_id, mcap_path.stem)
-    else:
-        with tempfile.TemporaryDirectory(prefix='drill_twin_recover_') as directory:
-            complete = Path(directory) / mcap_path.name
-            recover_log(mcap_path, complete)
-            _write_rrd(complete, rrd_path, stations, active_tab, application_id,
-                       mcap_path.stem)
+    with tempfile.TemporaryDirectory(prefix='drill_twin_recover_') as directory:
+        complete = []
+        for file in files:
+            if is_complete(file):
+                complete.append(file)
+            else:
+                complete.append(Path(directory) / file.name)
+                recover_log(file, complete[-1])
+        _write_rrd(complete, rrd_path, stations, active_tab, application_id, mcap_path.stem)
     return rrd_path
 
 
-def _write_rrd(mcap_path: Path, rrd_path: Path, stations: Sequence[float], active_tab,
-               application_id: str, recording_id: str) -> None:
+def _write_rrd(mcap_paths: Sequence[Path], rrd_path: Path, stations: Sequence[float],
+               active_tab, application_id: str, recording_id: str) -> None:
     import rerun as rr
 
     blueprint = twin_blueprint(stations, active_tab=active_tab)
     recording = rr.RecordingStream(application_id, recording_id=recording_id)
     try:
         recording.save(rrd_path, default_blueprint=blueprint)
-        recording.log_file_from_path(mcap_path)
+        for mcap_path in mcap_paths:
+            recording.log_file_from_path(mcap_path)
         recording.flush()            # waits for the importer threads, then the file sink
     finally:
         recording.disconnect()

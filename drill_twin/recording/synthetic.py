@@ -12,6 +12,7 @@ import os
 from typing import Any, Iterable, Iterator, NamedTuple
 
 from drill_twin import interface as itf
+from drill_twin.recording.log_metadata import RECORD_NAME
 from drill_twin.recording.mcap_log import McapLog
 from drill_twin.recording.message_types import import_message_class
 from drill_twin.recording.topics import BIT_JOINTS, TOP_JOINTS, twin_topics
@@ -166,8 +167,8 @@ def write_synthetic_log(path: str | os.PathLike, duration_s: float = 10.0,
     with McapLog(path) as log:
         for topic, spec in twin_topics(stations).items():
             log.add_topic(topic, spec.type_name, spec.qos)
-        log.add_twin_metadata('synthetic: true\n', seed=0, extra={
-            'stations_m': ','.join(f'{x:g}' for x in stations)})
+        log.add_metadata(RECORD_NAME, {'config': 'synthetic: true\n', 'seed': '0',
+                                       'stations_m': ','.join(f'{x:g}' for x in stations)})
         for item in synthetic_messages(duration_s, rate_hz, stations, start_ns):
             log.write(item.topic, item.message, item.log_time_ns)
         return log.message_counts

@@ -42,7 +42,11 @@ PARAMETERS = (
                   'use_sim_time)', safe=False),
     ParameterSpec('duration_s', 0.0, 'stop after this much simulated time (0: run until '
                   'stopped)', safe=True, low=0.0, high=1e9),
-    ParameterSpec('log_dir', 'runs', 'directory of the MCAP logs', safe=False),
+    ParameterSpec('log_dir', 'runs', 'directory of the logs: each run is a rosbag2 bag '
+                  '(a directory of MCAP splits and metadata.yaml) in it', safe=False),
+    ParameterSpec('log_split_s', 300.0, 'log time (s) an MCAP split of the log holds at most '
+                  '(rosbag2\'s max_bag_duration): only the split being written can be cut by '
+                  'a crash or a full disk', safe=False, low=1.0, high=86400.0),
     ParameterSpec('log_enabled', True, 'record every topic and command to an MCAP log',
                   safe=False),
     ParameterSpec('on_log_error', 'continue', 'if the log cannot be written: continue (run '

@@ -34,6 +34,7 @@ from drill_twin import __version__
 from drill_twin import interface as itf
 from drill_twin.config import ConfigError, load_config
 from drill_twin.config.loader import config_to_dict
+from drill_twin.recording.log_metadata import TwinLogMetadata
 from drill_twin.recording.qos import rclpy_qos_profile
 from drill_twin.recording.twin_log import TwinLog
 from drill_twin.ros import messages
@@ -157,29 +158,51 @@ class TwinNode(Node):
             topics[itf.CLOCK] = (Clock, itf.CLOCK_QOS)
         return topics
 
+    log_error: str | None = None
+    """Why the log stopped or could not be opened (None while it runs, or without a log)."""
+
     def _open_log(self, p):
+        """Open the run's log, a rosbag2 bag ``log_dir/drill_twin_<UTC time>/``; None if it
+        cannot be created and ``on_log_error`` is continue (LogDirectoryError if exit)."""
         stamp = datetime.datetime.now(datetime.timezone.utc).strftime('%Y%m%dT%H%M%SZ')
-        path = Path(p['log_dir']) / f'drill_twin_{stamp}.mcap'
+        path = Path(p['log_dir']) / f'drill_twin_{stamp}'
         counter = 1
         while path.exists():
-            path = Path(p['log_dir']) / f'drill_twin_{stamp}_{counter}.mcap'
+            path = Path(p['log_dir']) / f'drill_twin_{stamp}_{counter}'
             counter += 1
-        metadata = {'version': __version__, 'ensemble_members': str(p['ensemble_members']),
-                    'ensemble_dispersion': repr(p['ensemble_dispersion']),
-                    'ensemble_process': str(p['ensemble_process']).lower(),
-                    'rate_hz': repr(p['rate_hz']), 'substeps': str(self.substeps),
-                    'time_step_s': repr(self.engine.dt), 'fast': str(self.fast).lower(),
-                    'clock_epoch_ns': str(self.epoch_ns), 'kpi_window_s': repr(p['kpi_window_s'])}
+        metadata = TwinLogMetadata(
+            config_yaml=yaml.safe_dump(config_to_dict(self.config), sort_keys=False),
+            seed=p['seed'], clock_epoch_ns=self.epoch_ns, time_step_s=self.engine.dt,
+            ensemble_members=p['ensemble_members'],
+            ensemble_dispersion=p['ensemble_dispersion'],
+            ensemble_process=bool(p['ensemble_process']), rate_hz=p['rate_hz'],
+            substeps=self.substeps, fast=self.fast, kpi_window_s=p['kpi_window_s'],
+            version=__version__)
         try:
-            return TwinLog(path, self.stations_m,
-                           yaml.safe_dump(config_to_dict(self.config), sort_keys=False),
-                           p['seed'], metadata)
+            return TwinLog(path, self.stations_m, metadata, split_duration_s=p['log_split_s'])
         except OSError as error:
             text = f'cannot write the log {path}: {error.strerror or error}'
             if p['on_log_error'] == 'exit':
                 raise LogDirectoryError(text) from None
+            self.log_error = text
             self.get_logger().error(text + '; running without a log (on_log_error: continue)')
             return None
+
+    def _on_log_failure(self, now: int) -> None:
+        """A write to the log failed (disk full, ...): the log is closed; say so as an ERROR
+        on /rosout and /diagnostics, then obey ``on_log_error`` (exit: stop, status 1)."""
+        error, self.log = self.log.error, None
+        stop = self.params['on_log_error'] == 'exit'
+        self.log_error = (error or 'the log was closed') + (
+            '; stopping (on_log_error: exit)' if stop
+            else '; the twin runs on without a log (on_log_error: continue)')
+        self._report('error', self.log_error)
+        self._publish(itf.DIAGNOSTICS, messages.health(
+            {'log': 'stopped', 'log_error': self.log_error}, 'error',
+            'the log stopped: ' + self.log_error, now), now)
+        if stop:
+            self.failed = True
+            self.done.set_result(False)
 
     # -- time ----------------------------------------------------------------------------
     def twin_time_ns(self) -> int:
@@ -243,8 +266,9 @@ class TwinNode(Node):
         if self.fast:
             self._publish(itf.CLOCK, messages.clock(now), now)
         if self.log and not self.log.open:          # a write failed (disk full, ...)
-            error, self.log = self.log.error, None
-            self._report('error', error or 'the log was closed; the twin runs on without a log')
+            self._on_log_failure(now)
+            if self.done.done():                    # on_log_error: exit
+                return
         duration = self.params['duration_s']
         if duration > 0 and self.engine.time_s >= duration - 0.5 * self.engine.dt:
             self._report('info', f'{duration:g} s simulated: stopping')
@@ -352,6 +376,8 @@ class TwinNode(Node):
         self.engine.close()
         if self.log:
             self.log.close()
+            if self.log.error:                      # completing the log failed (disk full)
+                self.get_logger().error(self.log.error)
 
 
 def run(ros_args: list[str]) -> int:

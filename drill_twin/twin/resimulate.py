@@ -1,9 +1,11 @@
 """Re-run a logged twin on its recorded commands and seed, and compare the bit state.
 
-The log's ``drill_twin`` metadata holds the model configuration, the seed, the ensemble and the
-time step; the accepted commands are recorded at the twin time at which they took effect (the
-start of the next model step). Stepping a new engine and applying each command before the
-step that starts at its time reproduces the run: the mean model's bit state and the
+The log is a bag directory or one of its MCAP files (see drill_twin.recording.reader). Its
+``drill_twin`` metadata (:class:`~drill_twin.recording.log_metadata.TwinLogMetadata`, read
+with the code the node writes it with) holds the model configuration, the seed, the ensemble
+and the time step; the accepted commands are recorded at the twin time at which they took
+effect (the start of the next model step). Stepping a new engine and applying each command
+before the step that starts at its time reproduces the run: the mean model's bit state and the
 ensemble's mean and 2.5 % / 97.5 % bounds (drawn again from the recorded seed). With the same
 version of drill_twin both are identical bit for bit, whether the ensemble ran in the node's
 process or in a worker process (the re-run integrates it in this process).
@@ -17,9 +19,11 @@ from threadpoolctl import threadpool_limits
 
 from drill_twin import interface as itf
 from drill_twin.config import build_config
+from drill_twin.recording.log_metadata import RECORD_NAME, TwinLogMetadata
 from drill_twin.recording.reader import iter_messages, read_metadata
 from drill_twin.twin.engine import CommandLimits, EnsembleSettings, TwinEngine
 from drill_twin.twin.ensemble import BIT_FIELDS as FIELDS
+
 ENSEMBLE_TOPICS = {itf.ENSEMBLE_MEAN: 'ensemble_mean', itf.ENSEMBLE_LOWER: 'ensemble_lower',
                    itf.ENSEMBLE_UPPER: 'ensemble_upper'}
 
@@ -57,12 +61,13 @@ def _values(message) -> tuple:
 
 def resimulate(path) -> Resimulation:
     """Re-run the twin of the log at ``path`` and compare its recorded bit states."""
-    metadata = read_metadata(path).get('drill_twin')
-    if not metadata:
-        raise ValueError(f'{path}: no drill_twin metadata record (not a twin log?)')
-    config = build_config(yaml.safe_load(metadata['config']), source=str(path))
-    epoch = int(metadata['clock_epoch_ns'])
-    dt_ns = int(round(float(metadata['time_step_s']) * 1e9))
+    record = read_metadata(path).get(RECORD_NAME)
+    if not record:
+        raise ValueError(f'{path}: no {RECORD_NAME} metadata record (not a twin log?)')
+    metadata = TwinLogMetadata.from_record(record, source=str(path))
+    config = build_config(yaml.safe_load(metadata.config_yaml), source=str(path))
+    epoch = metadata.clock_epoch_ns
+    dt_ns = metadata.time_step_ns
     commands, recorded, ensemble_recorded = [], {}, {}
     topics = [itf.CMD_TOP_DRIVE_SPEED, itf.CMD_HOOK_LOAD, itf.BIT_STATE, *ENSEMBLE_TOPICS]
     for item in iter_messages(path, topics=topics):
@@ -76,12 +81,12 @@ def resimulate(path) -> Resimulation:
     commands.sort(key=lambda c: c[0])
     with threadpool_limits(limits=1, user_api='blas'):
         engine = TwinEngine(
-            config, EnsembleSettings(members=int(metadata['ensemble_members']),
-                                     dispersion=float(metadata['ensemble_dispersion']),
-                                     seed=int(metadata['seed'])),
+            config, EnsembleSettings(members=metadata.ensemble_members,
+                                     dispersion=metadata.ensemble_dispersion,
+                                     seed=metadata.seed),
             CommandLimits(top_drive_speed_max_rad_per_s=float('inf'),
                           hook_load_min_n=-float('inf'), hook_load_max_n=float('inf')),
-            kpi_window_s=float(metadata.get('kpi_window_s', 10.0)))
+            kpi_window_s=metadata.kpi_window_s)
         try:
             last = max(recorded) if recorded else epoch
             steps = (last - epoch) // dt_ns
@@ -117,7 +122,7 @@ def resimulate(path) -> Resimulation:
         finally:
             engine.close()
     return Resimulation(compared=compared, max_difference=differences,
-                        recorded_version=metadata.get('version', '?'), commands=len(commands),
+                        recorded_version=metadata.version, commands=len(commands),
                         ensemble_compared=ensemble_compared,
                         ensemble_max_difference=ensemble_differences if ensemble_compared
                         else None)
