@@ -4,9 +4,14 @@ from __future__ import annotations
 import argparse
 import sys
 
-from drill_twin import __version__
-from drill_twin.cli import modes, montecarlo, replay, simulate, twin, view
-from drill_twin.cli.common import report_and_exit_code
+from drill_twin.cli import startup_signals
+
+if startup_signals.wanted(sys.argv):
+    startup_signals.install()       # before the heavy imports below: SIGINT honoured at once
+
+from drill_twin import __version__  # noqa: E402
+from drill_twin.cli import modes, montecarlo, replay, simulate, twin, view  # noqa: E402
+from drill_twin.cli.common import report_and_exit_code  # noqa: E402
 
 SUBCOMMANDS = (modes, simulate, montecarlo, twin, view, replay)
 
