@@ -61,12 +61,12 @@ def test_a_non_positive_mode_count(tmp_path):
 
 
 @pytest.mark.parametrize('args, words', [
-    (('simulate', '--duration', 'inf'), ('--duration: must be a finite positive number',)),
+    (('simulate', '--duration', 'inf'), ('--duration: must be positive and finite',)),
     (('simulate', '--duration', '1e7'),
      ('--duration: 1e+07 s recorded every 0.01 s (1e+09 records) would need', 'GiB of memory')),
-    (MONTECARLO + ('--duration', 'nan'), ('--duration: must be a finite positive number',)),
+    (MONTECARLO + ('--duration', 'nan'), ('--duration: must be positive and finite',)),
     (MONTECARLO + ('--duration', '10', '--workers', '100000'), ('--workers: must lie in 1',)),
-    (('twin', '--no-log', '--duration', 'inf'), ('--duration: must be a finite positive',)),
+    (('twin', '--no-log', '--duration', 'inf'), ('--duration: must be positive and finite',)),
 ], ids=['simulate-inf', 'simulate-1e7', 'montecarlo-nan', 'montecarlo-workers', 'twin-inf'])
 def test_durations_and_sizes_that_cannot_run(tmp_path, args, words):
     assert_one_line(run_cli(*args, cwd=tmp_path), *words)

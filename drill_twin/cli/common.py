@@ -86,7 +86,7 @@ def blamed(config: DrillStringConfig, overrides, message: str, key: str = '',
 def positive_seconds(option: str, value: float) -> float:
     """A finite positive duration, else a UsageError naming ``option``."""
     if not (math.isfinite(value) and value > 0):
-        raise UsageError(f'{option}: must be a finite positive number of seconds, got {value}')
+        raise UsageError(f'{option}: must be positive and finite (seconds), got {value}')
     return value
 
 
