@@ -55,9 +55,12 @@ def test_implausible_configuration_values(tmp_path, override, words):
     assert_one_line(run_cli('modes', '--set', override, cwd=tmp_path), *words)
 
 
-def test_a_non_positive_mode_count(tmp_path):
-    assert_one_line(run_cli('modes', '--count', '-5', cwd=tmp_path),
-                    '--count: must be at least 1, got -5')
+@pytest.mark.parametrize('value, words', [
+    ('-5', '--count: must be at least 1, got -5'),
+    ('five', "argument --count: invalid int value: 'five' (see drill-twin modes --help)"),
+])
+def test_a_mode_count_that_is_not_a_positive_integer(tmp_path, value, words):
+    assert_one_line(run_cli('modes', '--count', value, cwd=tmp_path), words)
 
 
 @pytest.mark.parametrize('args, words', [

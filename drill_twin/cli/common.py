@@ -27,6 +27,14 @@ def config_from_args(args: argparse.Namespace) -> DrillStringConfig:
     return load_config(args.config, args.overrides)
 
 
+class OneLineArgumentParser(argparse.ArgumentParser):
+    """argparse's parser whose errors (an option missing, a value of the wrong type) are one
+    line and exit status 2, like every other bad input, instead of the usage and a line."""
+
+    def error(self, message: str):
+        self.exit(EXIT_USAGE, f'drill-twin: {message} (see {self.prog} --help)\n')
+
+
 class UsageError(Exception):
     """A bad command-line value: reported on one line, exit status 2."""
 

@@ -11,13 +11,13 @@ if startup_signals.wanted(sys.argv):
 
 from drill_twin import __version__  # noqa: E402
 from drill_twin.cli import modes, montecarlo, replay, simulate, twin, view  # noqa: E402
-from drill_twin.cli.common import report_and_exit_code  # noqa: E402
+from drill_twin.cli.common import OneLineArgumentParser, report_and_exit_code  # noqa: E402
 
 SUBCOMMANDS = (modes, simulate, montecarlo, twin, view, replay)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = OneLineArgumentParser(
         prog='drill-twin',
         description='Digital twin of a drill string (Ritto, Soize & Sampaio 2009).')
     parser.add_argument('--version', action='version', version=f'drill_twin {__version__}')

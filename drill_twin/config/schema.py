@@ -93,10 +93,11 @@ GRAVITY_MAX_M_PER_S2 = 30.0
 GRAVITY_REASON = 'no planet of the solar system pulls harder: Jupiter 24.8, Earth 9.81'
 WEIGHT_ON_BIT_MAX_N = 1.0e7
 WEIGHT_ON_BIT_REASON = 'twenty times the largest weights on bit, about 0.5 MN'
-BIT_MASS_MAX_KG = 1.0e4
-BIT_MASS_REASON = 'a bit with its motor weighs at most a few tonnes'
-BIT_INERTIA_MAX_KG_M2 = 1.0e3
-BIT_INERTIA_REASON = 'twice a 10 t steel cylinder filling a 0.6 m hole, 450 kg m2'
+BIT_MASS_MAX_KG = 1.0e6
+BIT_MASS_REASON = ('ten times the heaviest bottom-hole assemblies, about 100 t, were they '
+                   'lumped at the bit')
+BIT_INERTIA_MAX_KG_M2 = 1.0e5
+BIT_INERTIA_REASON = 'twice a 100 t steel cylinder filling a 2 m hole, 5e4 kg m2'
 TOP_DRIVE_SPEED_MAX_HZ = 10.0
 TOP_DRIVE_SPEED_REASON = 'twice the fastest top drives, 300 rpm = 5 Hz'
 TOP_DRIVE_ACCELERATION_MAX_RAD_PER_S2 = 1000.0
@@ -449,11 +450,11 @@ class DrillStringConfig:
                         f'sections.{section.name}.inner_diameter_m',
                         'a solid section cannot carry the mud flow (fluid.inlet_speed_m_per_s > 0)')
         clearance = max((hole - s.outer_diameter_m) / 2 for s in self.sections)
-        if self.initial_conditions.lateral_deflection_m > clearance:
+        if self.physics.contact and self.initial_conditions.lateral_deflection_m > clearance:
             raise ConfigValueError(
                 'initial_conditions.lateral_deflection_m',
                 f'{self.initial_conditions.lateral_deflection_m:g} m does not fit in the hole '
-                f'(largest clearance {clearance:g} m)')
+                f'(largest clearance {clearance:g} m): the string would start inside the wall')
         for index, x in enumerate(self.output.stations_m):
             if x > length:
                 raise ConfigValueError(
