@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
+from threadpoolctl import threadpool_limits
 
 from drill_twin.config.schema import DrillStringConfig
 from drill_twin.dynamics.bit_rock import BitRockLaw
@@ -209,21 +210,26 @@ def check_short_run(config: DrillStringConfig, system: ReducedSystem,
     diverges or the bit leaves the plausible range (ROP, bit speed)."""
     simulator = Simulator(config, system=system)
     steps = max(1, math.ceil(duration_s / simulator.dt - 1e-9))
-    for _ in range(steps):
-        try:
-            simulator.step()
-        except SimulationDiverged as error:
-            raise PreflightError('', f'it cannot be integrated: {error}') from None
-        forces = simulator.last
-        rop = float(np.max(np.abs(forces.rop_m_per_s)))
-        speed = float(np.max(np.abs(forces.bit_speed_rad_per_s)))
-        when = f'at t = {simulator.time_s:.3g} s of a {duration_s:g} s trial run'
-        if not rop <= ROP_MAX_M_PER_S:
-            raise PreflightError('', f'the bit moves at {_speed(rop)} {when}, more than '
-                                     f'{ROP_MAX_M_PER_S:g} m/s: the model runs away')
-        if not speed <= BIT_SPEED_MAX_RAD_PER_S:
-            raise PreflightError('', f'the bit turns at {speed:.3g} rad/s {when}, more than '
-                                     f'{BIT_SPEED_MAX_RAD_PER_S:g} rad/s: the model runs away')
+    with threadpool_limits(limits=1, user_api='blas'):          # small matrices (see run.py)
+        for _ in range(steps):
+            try:
+                simulator.step()
+            except SimulationDiverged as error:
+                raise PreflightError('', f'it cannot be integrated: {error}') from None
+            _check_bit(simulator, duration_s)
+
+
+def _check_bit(simulator: Simulator, duration_s: float) -> None:
+    forces = simulator.last
+    rop = float(np.max(np.abs(forces.rop_m_per_s)))
+    speed = float(np.max(np.abs(forces.bit_speed_rad_per_s)))
+    when = f'at t = {simulator.time_s:.3g} s of a {duration_s:g} s trial run'
+    if not rop <= ROP_MAX_M_PER_S:
+        raise PreflightError('', f'the bit moves at {_speed(rop)} {when}, more than '
+                                 f'{ROP_MAX_M_PER_S:g} m/s: the model runs away')
+    if not speed <= BIT_SPEED_MAX_RAD_PER_S:
+        raise PreflightError('', f'the bit turns at {speed:.3g} rad/s {when}, more than '
+                                 f'{BIT_SPEED_MAX_RAD_PER_S:g} rad/s: the model runs away')
 
 
 def _speed(m_per_s: float) -> str:
