@@ -113,6 +113,22 @@ def test_round_trip_through_a_plain_mapping(default_config):
     ({'integration': {'time_step_s': 0.0}}, 'integration.time_step_s', 'positive'),
     ({'sections': [dict(default_raw()['sections'][0], poisson_ratio=0.7)]},
      'sections.drill_pipe.poisson_ratio', '(-1, 0.5)'),
+    # Plausibility: finite but beyond any drill string (and beyond floating point downstream).
+    ({'gravity_m_per_s2': 1e308}, 'gravity_m_per_s2', 'at most 30 (no planet'),
+    ({'sections': [dict(default_raw()['sections'][0], young_modulus_pa=1e308)]},
+     'sections.drill_pipe.young_modulus_pa', 'at most 1.2e+12 (from polymers'),
+    ({'sections': [dict(default_raw()['sections'][0], young_modulus_pa=2.1e5)]},
+     'sections.drill_pipe.young_modulus_pa', 'at least 1e+09'),
+    ({'sections': [dict(default_raw()['sections'][0], length_m=1e6)]},
+     'sections.drill_pipe.length_m', 'no well is longer'),
+    ({'sections': [dict(default_raw()['sections'][0], elements=5000)]},
+     'sections.drill_pipe.elements', 'the modal analysis is dense'),
+    ({'operation': {'hook_load_n': -1.0}}, 'operation.hook_load_n', 'a hook can only pull'),
+    ({'operation': {'top_drive_speed_hz': -83.0}}, 'operation.top_drive_speed_hz',
+     'at least -10'),
+    ({'integration': {'time_step_s': 1.0}}, 'integration.time_step_s', 'at most 0.1'),
+    ({'initial_conditions': {'lateral_deflection_m': 0.5}},
+     'initial_conditions.lateral_deflection_m', 'does not fit in the hole'),
 ])
 def test_impossible_or_malformed_values_are_refused(changes, key, words):
     with pytest.raises(ConfigError) as info:
@@ -170,3 +186,36 @@ def test_cli_missing_file():
     assert result.returncode == 2
     assert result.stderr.strip() == ('drill-twin: /nonexistent/drill.yaml: cannot read: '
                                      'No such file or directory')
+
+
+@pytest.mark.parametrize('content, words', [
+    (b'\xe4\x00\xff binary', 'not a UTF-8 text file (byte 0xe4 at offset 0)'),
+    (b'a: ' + b'[' * 5000, 'YAML'),
+    (b'# ' + b'x' * (1 << 20) + b'\n', 'larger than 1024 KiB: not a configuration file'),
+])
+def test_files_that_are_not_configurations_are_one_line(tmp_path, content, words):
+    path = tmp_path / 'odd.yaml'
+    path.write_bytes(content)
+    with pytest.raises(ConfigError) as info:
+        load_config(path)
+    assert str(info.value).startswith(f'{path}: ') and '\n' not in str(info.value)
+    assert words in str(info.value)
+
+
+@pytest.mark.parametrize('override', ['sections.1.length_m=-5',
+                                      'sections.drill_collar.length_m=-5'])
+def test_a_bad_list_item_is_blamed_on_set_by_index_or_name(override):
+    with pytest.raises(ConfigError) as info:
+        load_config(None, [override])
+    assert info.value.source == '--set'
+    assert info.value.key == 'sections.drill_collar.length_m'
+
+
+def test_a_bad_value_from_the_file_is_not_blamed_on_an_unrelated_set(tmp_path):
+    path = tmp_path / 'mine.yaml'
+    path.write_text('fluid:\n  density_kg_per_m3: 9000.0\n')
+    with pytest.raises(ConfigError) as info:
+        load_config(path, ['sections.1.elements=30'])
+    assert info.value.source == str(path)
+    assert info.value.key == 'fluid.density_kg_per_m3'
+    assert 'heaviest drilling muds' in info.value.message

@@ -4,15 +4,20 @@ from __future__ import annotations
 import argparse
 import sys
 
-from drill_twin import __version__
-from drill_twin.cli import modes, montecarlo, recover, replay, simulate, twin, view
-from drill_twin.cli.common import report_and_exit_code
+from drill_twin.cli import startup_signals
+
+if startup_signals.wanted(sys.argv):
+    startup_signals.install()       # before the heavy imports below: SIGINT honoured at once
+
+from drill_twin import __version__  # noqa: E402
+from drill_twin.cli import modes, montecarlo, recover, replay, simulate, twin, view  # noqa: E402
+from drill_twin.cli.common import OneLineArgumentParser, report_and_exit_code  # noqa: E402
 
 SUBCOMMANDS = (modes, simulate, montecarlo, twin, view, replay, recover)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = OneLineArgumentParser(
         prog='drill-twin',
         description='Digital twin of a drill string (Ritto, Soize & Sampaio 2009).')
     parser.add_argument('--version', action='version', version=f'drill_twin {__version__}')

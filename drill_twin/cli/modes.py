@@ -5,9 +5,9 @@ import argparse
 import json
 import time
 
-from drill_twin.cli.common import add_config_arguments, config_from_args
+from drill_twin.cli.common import (UsageError, add_config_arguments, build_model_or_refuse,
+                                   config_from_args)
 from drill_twin.modal.paper_table1 import TABLE1
-from drill_twin.modal.reduced_basis import modal_analysis
 
 
 def add_parser(subparsers) -> None:
@@ -23,13 +23,15 @@ def add_parser(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.count is not None and args.count < 1:
+        raise UsageError(f'--count: must be at least 1, got {args.count}')
     config = config_from_args(args)
     start = time.perf_counter()
-    model, _, basis = modal_analysis(config)
+    model, basis = build_model_or_refuse(config, args.overrides)
     elapsed = time.perf_counter() - start
     elastic = [i for i in range(basis.size) if not basis.rigid[i]]
     if args.count is not None:
-        elastic = elastic[:max(args.count, 0)]
+        elastic = elastic[:args.count]
     prestress = model.prestress
     if args.json:
         print(json.dumps({

@@ -2,9 +2,32 @@
 from __future__ import annotations
 
 import argparse
+import os
 
-from drill_twin.cli.common import UsageError, add_config_arguments, config_from_args
+from drill_twin.cli.common import (UsageError, add_config_arguments, blamed, config_from_args,
+                                   positive_seconds, preflight_or_refuse, require_memory)
 from drill_twin.cli.progress import ProgressBar
+
+WORKERS_PER_CORE_MAX = 4
+"""--workers beyond four processes per core only compete for the cores (and each holds its
+own copy of the model)."""
+
+
+def workers_max() -> int:
+    return WORKERS_PER_CORE_MAX * (os.cpu_count() or 1)
+
+
+def window_records(config, window_s: float) -> int:
+    """Instants every realization keeps: the stationary window at the record interval."""
+    return int(window_s / config.output.record_interval_s) + 1
+
+
+def study_bytes(samples: int, records: int) -> float:
+    """Memory of a study's series: 5 quantities per realization and instant, held by the
+    chunks, the gathered arrays and the statistics' sorted copies (three times)."""
+    from drill_twin.uncertainty.montecarlo import QUANTITIES
+
+    return 3.0 * 8 * len(QUANTITIES) * samples * records
 
 
 def add_parser(subparsers) -> None:
@@ -39,15 +62,20 @@ def add_parser(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    positive_seconds('--duration', args.duration)
+    if not args.window > 0:
+        raise UsageError(f'--window: must be positive, got {args.window}')
+    if args.workers is not None and not 1 <= args.workers <= workers_max():
+        raise UsageError(f'--workers: must lie in 1 ... {workers_max()} (four per core of this '
+                         f'machine: more only compete for the cores), got {args.workers}')
+    window = min(args.window, args.duration)
     config = config_from_args(args)
+    from drill_twin.dynamics.simulator import SimulationDiverged
     from drill_twin.uncertainty.executors import make_executor
     from drill_twin.uncertainty.montecarlo import StudySpec
     from drill_twin.uncertainty.study import run_study
     from drill_twin.uncertainty.study_io import summary, write_study
 
-    if args.workers is not None and args.workers < 1:
-        raise UsageError(f'--workers: must be at least 1, got {args.workers}')
-    window = min(args.window, args.duration) if args.duration > 0 else args.window
     try:
         spec = StudySpec(dispersion=args.delta, samples=args.samples, duration_s=args.duration,
                          seed=args.seed, window_s=window, batch_size=args.batch_size,
@@ -57,9 +85,17 @@ def run(args: argparse.Namespace) -> int:
     if not any(abs(x - args.station) < 1e-6 for x in config.output.stations_m):
         raise UsageError(f'--station: {args.station} m is not one of output.stations_m '
                          f'{list(config.output.stations_m)}')
+    records = window_records(config, window)
+    require_memory('--samples, --window', f'{args.samples} realizations of {records} records '
+                   f'(--window {window:g} s)', study_bytes(args.samples, records))
+    preflight_or_refuse(config, args.overrides)
     executor = make_executor(args.workers, args.scheduler)
     try:
         result = run_study(config, spec, executor, progress=ProgressBar('montecarlo'))
+    except SimulationDiverged as error:
+        # Only the mean model's divergence ends a study (realizations are reported).
+        raise blamed(config, args.overrides,
+                     f'the mean model cannot be integrated: {error}') from None
     finally:
         executor.close()
     write_study(result, args.out, figures=not args.no_figures)

@@ -5,7 +5,8 @@ import argparse
 import json
 from pathlib import Path
 
-from drill_twin.cli.common import UsageError, add_config_arguments, config_from_args
+from drill_twin.cli.common import (UsageError, add_config_arguments, blamed, config_from_args,
+                                   positive_seconds, preflight_or_refuse, require_memory)
 from drill_twin.cli.progress import ProgressBar
 
 
@@ -31,19 +32,29 @@ def add_parser(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    if not args.duration > 0:
-        raise UsageError(f'--duration: must be positive, got {args.duration}')
+    positive_seconds('--duration', args.duration)
     if not args.window > 0:
         raise UsageError(f'--window: must be positive, got {args.window}')
     if args.out and Path(args.out).suffix not in ('.csv', '.npz'):
         raise UsageError(f'--out: {args.out}: use a .csv or .npz file name')
     config = config_from_args(args)
+    records, need = history_size(config, args.duration)
+    require_memory('--duration', f'{args.duration:g} s recorded every '
+                   f'{config.output.record_interval_s:g} s ({records:.3g} records)', need)
+    checked = preflight_or_refuse(config, args.overrides)
     from drill_twin.config.loader import config_to_dict
+    from drill_twin.dynamics.simulator import SimulationDiverged
     from drill_twin.simulation.results_io import write_results
     from drill_twin.simulation.run import run_simulation
     from drill_twin.simulation.summary import summarize
 
-    result = run_simulation(config, args.duration, progress=ProgressBar('simulate'))
+    try:
+        result = run_simulation(config, args.duration, system=checked.system,
+                                progress=ProgressBar('simulate'))
+    except SimulationDiverged as error:
+        # Nothing but the configuration drives an offline run: it is to blame.
+        raise blamed(config, args.overrides,
+                     f'the run cannot be integrated: {error}') from None
     window = min(args.window, args.duration)
     summary = summarize(result, window, config.borehole.diameter_m)
     if args.out:
@@ -57,6 +68,20 @@ def run(args: argparse.Namespace) -> int:
         plot_run(result, args.plot, window, clearance_m=clearance)
     print(_text(summary, args.duration, window))
     return 0
+
+
+def history_size(config, duration_s: float, members: int = 1) -> tuple[float, float]:
+    """(records, bytes) of the history ``run_simulation`` keeps for ``duration_s``: the
+    recorder's preallocated arrays and the result's copy of them."""
+    from drill_twin.simulation.history import BIT_CHANNELS, SHARED_CHANNELS, STATION_FIELDS
+
+    dt = config.integration.time_step_s
+    every = max(1, round(config.output.record_interval_s / dt))
+    records = duration_s / dt // every + 1
+    stations = len(config.output.stations_m)
+    per_member = 8 * (len(BIT_CHANNELS) + 2) + 4 * 8 * stations * len(STATION_FIELDS)
+    per_record = 8 * (1 + len(SHARED_CHANNELS)) + members * per_member
+    return records, 2.0 * records * per_record
 
 
 def _text(summary: dict, duration: float, window: float) -> str:

@@ -5,8 +5,12 @@ import argparse
 import json
 from pathlib import Path
 
-from drill_twin.cli.common import UsageError
+from drill_twin.cli import startup_signals
+from drill_twin.cli.common import UsageError, positive_seconds, preflight_or_refuse
+from drill_twin.config import load_config
 from drill_twin.config.paths import config_directory
+from drill_twin.ros.parameters import (ParameterError, check_parameter, model_overrides,
+                                       validate_ros_arguments)
 
 
 def add_parser(subparsers) -> None:
@@ -37,8 +41,16 @@ def add_parser(subparsers) -> None:
     parser.set_defaults(run=run)
 
 
+OPTION_PARAMETERS = {'duration': ('--duration', 'duration_s'),
+                     'ensemble': ('--ensemble', 'ensemble_members'),
+                     'delta': ('--delta', 'ensemble_dispersion'),
+                     'seed': ('--seed', 'seed')}
+"""Options that set a node parameter with a range: option, parameter."""
+
+
 def ros_arguments(args: argparse.Namespace) -> list[str]:
-    """The ROS command line of the node for the parsed options."""
+    """The ROS command line of the node for the parsed options (each value checked against
+    the parameter's type and range: UsageError)."""
     params_file = args.params_file or str(config_directory() / 'twin.yaml')
     if not Path(params_file).is_file():
         raise UsageError(f'--params-file: {params_file}: no such file')
@@ -47,6 +59,16 @@ def ros_arguments(args: argparse.Namespace) -> list[str]:
     def set_parameter(name, value):
         ros.extend(['-p', f'{name}:={json.dumps(value)}'])
 
+    for attribute, (option, name) in OPTION_PARAMETERS.items():
+        value = getattr(args, attribute)
+        if value is None:
+            continue
+        if attribute == 'duration':
+            positive_seconds(option, value)
+        try:
+            check_parameter(name, value)
+        except ParameterError as error:
+            raise UsageError(f'{option}: {error.message} (parameter {name})') from None
     if args.config:
         if not Path(args.config).is_file():
             raise UsageError(f'--config: {args.config}: no such file')
@@ -54,8 +76,6 @@ def ros_arguments(args: argparse.Namespace) -> list[str]:
     if args.overrides:
         set_parameter('model_overrides', args.overrides)
     if args.duration is not None:
-        if not args.duration > 0:
-            raise UsageError(f'--duration: must be positive, got {args.duration}')
         set_parameter('duration_s', float(args.duration))
     if args.log_dir:
         set_parameter('log_dir', args.log_dir)
@@ -74,8 +94,27 @@ def ros_arguments(args: argparse.Namespace) -> list[str]:
     return ros + list(getattr(args, 'ros_args', []))
 
 
-def run(args: argparse.Namespace) -> int:
-    ros = ros_arguments(args)
-    from drill_twin.ros.twin_node import run as run_node
+def checked_start(ros: list[str]) -> dict:
+    """The node's parameters, checked as the node would (params files and -p rules included),
+    and its model configuration loaded and pre-flighted: every problem is one line (exit 2)
+    before the node starts. Returns the parameters."""
+    try:
+        values = validate_ros_arguments(ros)
+    except ParameterError as error:
+        raise UsageError(str(error)) from None
+    overrides = model_overrides(values)
+    config = load_config(values['model_config'] or None, overrides)
+    preflight_or_refuse(config, overrides)
+    return values
 
-    return run_node(['drill-twin'] + ros)
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        startup_signals.arm()         # a SIGINT or SIGTERM since start-up stops here
+        ros = ros_arguments(args)
+        checked_start(ros)
+        from drill_twin.ros.twin_node import run as run_node
+
+        return run_node(['drill-twin'] + ros)
+    except KeyboardInterrupt:
+        return 0                      # stopped while starting: nothing was opened yet

@@ -47,20 +47,57 @@ def load_config(path: str | Path | None = None,
         source = str(path)
         user = _read_yaml(Path(path))
         raw = merge(raw, user)
-    overridden = []
+    overrides = list(overrides)
     for item in overrides:
         raw = apply_override(raw, item)
-        overridden.append(item.split('=', 1)[0].strip())
     try:
         return build_config(raw, source=source)
     except ConfigError as error:
-        if any(_same_or_inside(error.key, key) or key in error.message for key in overridden):
+        if _set_by_override(error.key, error.message, raw, overrides):
             raise ConfigError('--set', error.key, error.message) from None
         raise
 
 
+def source_of(key: str, config: DrillStringConfig, overrides: Iterable[str] = ()) -> str:
+    """Whom a problem with ``key`` of ``config`` is blamed on: ``--set`` when one of the
+    ``overrides`` set that key, a key inside it or one containing it, else the file the
+    configuration came from (``config.source``)."""
+    if _set_by_override(key, '', config_to_dict(config), overrides):
+        return '--set'
+    return config.source
+
+
+def _set_by_override(key: str, message: str, raw: dict, overrides: Iterable[str]) -> bool:
+    for item in overrides:
+        path = labelled_path(raw, item.split('=', 1)[0].strip())
+        if (_same_or_inside(key, path) or _same_or_inside(path, key)
+                or (message and path in message)):
+            return True
+    return False
+
+
 def _same_or_inside(key: str, prefix: str) -> bool:
-    return key == prefix or key.startswith(prefix + '.')
+    return bool(key) and (key == prefix or key.startswith(prefix + '.'))
+
+
+def labelled_path(raw: dict, path: str) -> str:
+    """A dotted path as errors name it: list items by their ``name`` (else their index), so
+    that ``sections.1.length_m`` reads ``sections.drill_collar.length_m``."""
+    node: Any = raw
+    labels = []
+    for key in path.split('.'):
+        if isinstance(node, list):
+            index = _list_index(node, key)
+            if index is None:
+                labels.append(key)
+                node = None
+                continue
+            labels.append(_item_label(node[index], index))
+            node = node[index]
+        else:
+            labels.append(key)
+            node = node.get(key) if isinstance(node, dict) else None
+    return '.'.join(labels)
 
 
 def build_config(raw: dict, source: str = '<mapping>') -> DrillStringConfig:
@@ -86,18 +123,36 @@ def _plain(value):
     return value
 
 
+MAX_CONFIG_BYTES = 1 << 20
+"""A configuration file is read only up to 1 MiB: the shipped one, every key of the schema
+with comments, is 6 kB; anything larger (a device, a log named by mistake) is not one."""
+
+
 def _read_yaml(path: Path) -> dict:
     try:
-        text = path.read_text()
+        with open(path, 'rb') as handle:
+            content = handle.read(MAX_CONFIG_BYTES + 1)
     except OSError as error:
         raise ConfigError(str(path), '', f'cannot read: {error.strerror or error}') from None
+    if len(content) > MAX_CONFIG_BYTES:
+        raise ConfigError(str(path), '', f'larger than {MAX_CONFIG_BYTES // 1024} KiB: not a '
+                          'configuration file')
+    try:
+        text = content.decode('utf-8')
+    except UnicodeDecodeError as error:
+        byte = content[error.start]
+        raise ConfigError(str(path), '', f'not a UTF-8 text file (byte 0x{byte:02x} at offset '
+                          f'{error.start})') from None
     try:
         data = yaml_io.safe_load(text)
     except yaml.YAMLError as error:
         mark = getattr(error, 'problem_mark', None)
         where = f'line {mark.line + 1}' if mark is not None else ''
-        problem = getattr(error, 'problem', None) or str(error).splitlines()[0]
+        problem = (getattr(error, 'problem', None) or getattr(error, 'reason', None)
+                   or str(error).splitlines()[0])
         raise ConfigError(str(path), where, f'YAML syntax error: {problem}') from None
+    except RecursionError:
+        raise ConfigError(str(path), '', 'YAML nested too deeply') from None
     if data is None:
         return {}
     if not isinstance(data, dict):

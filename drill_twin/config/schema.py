@@ -50,6 +50,73 @@ def _non_negative(obj, *names: str) -> None:
             raise ConfigValueError(name, f'must be a finite number >= 0, got {value!r}')
 
 
+def _at_most(obj, name: str, high: float, reason: str) -> None:
+    """Refuse |value| above the plausible ``high`` (``reason`` says why it is implausible)."""
+    value = getattr(obj, name)
+    if abs(value) > high:
+        bound = f'at most {high:g}' if value > 0 else f'at least {-high:g}'
+        raise ConfigValueError(name, f'must be {bound} ({reason}), got {value:g}')
+
+
+def _at_least(obj, name: str, low: float, reason: str) -> None:
+    value = getattr(obj, name)
+    if value < low:
+        raise ConfigValueError(name, f'must be at least {low:g} ({reason}), got {value:g}')
+
+
+# Plausibility: every bound lies beyond any real drill string, so that a value outside it is
+# a mistake (a unit slip, an exponent too many), and the model built from values inside it
+# stays within floating-point range. Each bound says why (the message carries the reason).
+LENGTH_MAX_M = 20_000.0
+LENGTH_REASON = 'no well is longer: Kola SG-3 12 262 m, extended-reach wells 15 km'
+HOLE_DIAMETER_MAX_M = 2.0
+HOLE_DIAMETER_REASON = 'no rotary-drilled hole is wider: conductor holes are about 1.1 m'
+ELEMENTS_MAX = 1000
+ELEMENTS_REASON = ('the modal analysis is dense: a 6 (N + 1) square mode-shape matrix, '
+                   '290 MB at 1000 elements; the paper uses 56')
+YOUNG_MODULUS_RANGE_PA = (1.0e9, 1.2e12)
+YOUNG_MODULUS_REASON = 'from polymers, 1 GPa, to diamond, 1.2 TPa; steel is 210 GPa'
+SOLID_DENSITY_RANGE_KG_PER_M3 = (500.0, 25_000.0)
+SOLID_DENSITY_REASON = 'from wood, 500, to osmium, 22 600; steel is 7 850'
+SPRING_STIFFNESS_MAX_N_PER_M = 1.0e11
+SPRING_STIFFNESS_REASON = ('a solid steel plug filling a 0.6 m hole, one diameter long: '
+                           'E pi D / 4 = 1e11 N/m')
+FRICTION_COEFFICIENT_MAX = 2.0
+FRICTION_REASON = 'steel rubs on rock with 0.1 to 0.6'
+MUD_DENSITY_MAX_KG_PER_M3 = 3000.0
+MUD_DENSITY_REASON = 'the heaviest drilling muds are about 2 500 kg/m3'
+MUD_SPEED_MAX_M_PER_S = 30.0
+MUD_SPEED_REASON = 'five times the fastest mud flow in drill pipe, about 6 m/s'
+DRAG_COEFFICIENT_MAX = 1.0
+DRAG_REASON = 'eighty times the paper\'s skin-friction coefficient, 0.0125'
+GRAVITY_MAX_M_PER_S2 = 30.0
+GRAVITY_REASON = 'no planet of the solar system pulls harder: Jupiter 24.8, Earth 9.81'
+WEIGHT_ON_BIT_MAX_N = 1.0e7
+WEIGHT_ON_BIT_REASON = 'twenty times the largest weights on bit, about 0.5 MN'
+BIT_MASS_MAX_KG = 1.0e6
+BIT_MASS_REASON = ('ten times the heaviest bottom-hole assemblies, about 100 t, were they '
+                   'lumped at the bit')
+BIT_INERTIA_MAX_KG_M2 = 1.0e5
+BIT_INERTIA_REASON = 'twice a 100 t steel cylinder filling a 2 m hole, 5e4 kg m2'
+TOP_DRIVE_SPEED_MAX_HZ = 10.0
+TOP_DRIVE_SPEED_REASON = 'twice the fastest top drives, 300 rpm = 5 Hz'
+TOP_DRIVE_ACCELERATION_MAX_RAD_PER_S2 = 1000.0
+TOP_DRIVE_ACCELERATION_REASON = 'a top drive takes about a second, not 0.03 s, to full speed'
+HOOK_LOAD_MAX_N = 1.0e8
+HOOK_LOAD_REASON = 'ten times the rated hook load of the largest rigs, about 1 000 t'
+MASS_DAMPING_MAX_PER_S = 100.0
+MASS_DAMPING_REASON = 'more would critically damp every mode below 8 Hz'
+STIFFNESS_DAMPING_MAX_S = 0.1
+STIFFNESS_DAMPING_REASON = 'more would critically damp every mode above 3.2 Hz'
+TIME_STEP_MAX_S = 0.1
+TIME_STEP_REASON = ('ten steps per period of 1 Hz, the harmonics of the 0.2 Hz stick-slip; '
+                    'the paper uses 5 ms')
+TOLERANCE_MAX = 0.1
+TOLERANCE_REASON = 'more would accept a Newton step with 10 % of its increment unresolved'
+ITERATIONS_MAX = 1000
+ITERATIONS_REASON = 'Newton\'s method converges in a few iterations or not at all'
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class Section:
     """A run of identical tubulars (drill pipe, heavy-weight pipe, collars).
@@ -80,6 +147,15 @@ class Section:
                 f'got {self.inner_diameter_m} m')
         if self.elements < 1:
             raise ConfigValueError('elements', f'must be at least 1, got {self.elements}')
+        _at_most(self, 'elements', ELEMENTS_MAX, ELEMENTS_REASON)
+        _at_most(self, 'length_m', LENGTH_MAX_M, LENGTH_REASON)
+        _at_most(self, 'outer_diameter_m', HOLE_DIAMETER_MAX_M, HOLE_DIAMETER_REASON)
+        _at_least(self, 'young_modulus_pa', YOUNG_MODULUS_RANGE_PA[0], YOUNG_MODULUS_REASON)
+        _at_most(self, 'young_modulus_pa', YOUNG_MODULUS_RANGE_PA[1], YOUNG_MODULUS_REASON)
+        _at_least(self, 'density_kg_per_m3', SOLID_DENSITY_RANGE_KG_PER_M3[0],
+                  SOLID_DENSITY_REASON)
+        _at_most(self, 'density_kg_per_m3', SOLID_DENSITY_RANGE_KG_PER_M3[1],
+                 SOLID_DENSITY_REASON)
         if not -1.0 < self.poisson_ratio < 0.5:
             raise ConfigValueError('poisson_ratio',
                                    f'must lie in (-1, 0.5), got {self.poisson_ratio}')
@@ -103,6 +179,7 @@ class Stabilizer:
 
     def __post_init__(self):
         _non_negative(self, 'position_m', 'stiffness_n_per_m')
+        _at_most(self, 'stiffness_n_per_m', SPRING_STIFFNESS_MAX_N_PER_M, SPRING_STIFFNESS_REASON)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -118,6 +195,10 @@ class Borehole:
         _positive(self, 'diameter_m', 'contact_stiffness_n_per_m',
                   'friction_regularization_rad_per_s')
         _non_negative(self, 'friction_coefficient')
+        _at_most(self, 'diameter_m', HOLE_DIAMETER_MAX_M, HOLE_DIAMETER_REASON)
+        _at_most(self, 'contact_stiffness_n_per_m', SPRING_STIFFNESS_MAX_N_PER_M,
+                 SPRING_STIFFNESS_REASON)
+        _at_most(self, 'friction_coefficient', FRICTION_COEFFICIENT_MAX, FRICTION_REASON)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -134,6 +215,9 @@ class Fluid:
         _positive(self, 'density_kg_per_m3')
         _non_negative(self, 'inlet_speed_m_per_s', 'drag_coefficient',
                       'viscous_damping_n_s_per_m2')
+        _at_most(self, 'density_kg_per_m3', MUD_DENSITY_MAX_KG_PER_M3, MUD_DENSITY_REASON)
+        _at_most(self, 'inlet_speed_m_per_s', MUD_SPEED_MAX_M_PER_S, MUD_SPEED_REASON)
+        _at_most(self, 'drag_coefficient', DRAG_COEFFICIENT_MAX, DRAG_REASON)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -156,6 +240,7 @@ class BitRock:
         _non_negative(self, 'a1_m_per_s', 'a3_m_per_rad', 'a4_n_rad', 'a5_n_m')
         if not math.isfinite(self.static_weight_on_bit_n):
             raise ConfigValueError('static_weight_on_bit_n', 'must be finite')
+        _at_most(self, 'static_weight_on_bit_n', WEIGHT_ON_BIT_MAX_N, WEIGHT_ON_BIT_REASON)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -167,6 +252,8 @@ class Bit:
 
     def __post_init__(self):
         _non_negative(self, 'mass_kg', 'polar_inertia_kg_m2')
+        _at_most(self, 'mass_kg', BIT_MASS_MAX_KG, BIT_MASS_REASON)
+        _at_most(self, 'polar_inertia_kg_m2', BIT_INERTIA_MAX_KG_M2, BIT_INERTIA_REASON)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -182,9 +269,17 @@ class Operation:
     def __post_init__(self):
         if not math.isfinite(self.top_drive_speed_hz):
             raise ConfigValueError('top_drive_speed_hz', 'must be finite')
+        _at_most(self, 'top_drive_speed_hz', TOP_DRIVE_SPEED_MAX_HZ, TOP_DRIVE_SPEED_REASON)
         _positive(self, 'top_drive_acceleration_rad_per_s2')
-        if self.hook_load_n is not None and not math.isfinite(self.hook_load_n):
-            raise ConfigValueError('hook_load_n', 'must be finite or null')
+        _at_most(self, 'top_drive_acceleration_rad_per_s2', TOP_DRIVE_ACCELERATION_MAX_RAD_PER_S2,
+                 TOP_DRIVE_ACCELERATION_REASON)
+        if self.hook_load_n is not None:
+            if not math.isfinite(self.hook_load_n):
+                raise ConfigValueError('hook_load_n', 'must be finite or null')
+            if self.hook_load_n < 0:
+                raise ConfigValueError('hook_load_n', f'must be >= 0 (a hook can only pull), '
+                                                      f'got {self.hook_load_n:g}')
+            _at_most(self, 'hook_load_n', HOOK_LOAD_MAX_N, HOOK_LOAD_REASON)
 
     @property
     def top_drive_speed_rad_per_s(self) -> float:
@@ -227,6 +322,9 @@ class Damping:
 
     def __post_init__(self):
         _non_negative(self, 'mass_coefficient_per_s', 'stiffness_coefficient_s')
+        _at_most(self, 'mass_coefficient_per_s', MASS_DAMPING_MAX_PER_S, MASS_DAMPING_REASON)
+        _at_most(self, 'stiffness_coefficient_s', STIFFNESS_DAMPING_MAX_S,
+                 STIFFNESS_DAMPING_REASON)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -256,6 +354,9 @@ class Integration:
         if self.max_iterations < 1:
             raise ConfigValueError('max_iterations',
                                    f'must be at least 1, got {self.max_iterations}')
+        _at_most(self, 'time_step_s', TIME_STEP_MAX_S, TIME_STEP_REASON)
+        _at_most(self, 'tolerance', TOLERANCE_MAX, TOLERANCE_REASON)
+        _at_most(self, 'max_iterations', ITERATIONS_MAX, ITERATIONS_REASON)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -316,6 +417,15 @@ class DrillStringConfig:
             if names.index(name) != index:
                 raise ConfigValueError(f'sections.{index}.name', f'duplicate name {name!r}')
         _positive(self, 'gravity_m_per_s2')
+        _at_most(self, 'gravity_m_per_s2', GRAVITY_MAX_M_PER_S2, GRAVITY_REASON)
+        elements = sum(s.elements for s in self.sections)
+        if elements > ELEMENTS_MAX:
+            raise ConfigValueError('sections', f'{elements} elements in all; at most '
+                                               f'{ELEMENTS_MAX} ({ELEMENTS_REASON})')
+        length = self.length_m
+        if length > LENGTH_MAX_M:
+            raise ConfigValueError('sections', f'the string is {length:g} m long; at most '
+                                               f'{LENGTH_MAX_M:g} m ({LENGTH_REASON})')
         hole = self.borehole.diameter_m
         for section in self.sections:
             if section.outer_diameter_m >= hole:
@@ -323,7 +433,6 @@ class DrillStringConfig:
                     f'sections.{section.name}.outer_diameter_m',
                     f'{section.outer_diameter_m} m does not fit in the borehole '
                     f'(borehole.diameter_m = {hole} m)')
-        length = self.length_m
         for stabilizer in self.stabilizers:
             if stabilizer.position_m > length:
                 raise ConfigValueError(
@@ -340,6 +449,12 @@ class DrillStringConfig:
                     raise ConfigValueError(
                         f'sections.{section.name}.inner_diameter_m',
                         'a solid section cannot carry the mud flow (fluid.inlet_speed_m_per_s > 0)')
+        clearance = max((hole - s.outer_diameter_m) / 2 for s in self.sections)
+        if self.physics.contact and self.initial_conditions.lateral_deflection_m > clearance:
+            raise ConfigValueError(
+                'initial_conditions.lateral_deflection_m',
+                f'{self.initial_conditions.lateral_deflection_m:g} m does not fit in the hole '
+                f'(largest clearance {clearance:g} m): the string would start inside the wall')
         for index, x in enumerate(self.output.stations_m):
             if x > length:
                 raise ConfigValueError(

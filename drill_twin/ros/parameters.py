@@ -92,3 +92,194 @@ def markdown_table() -> str:
     rows += [f'| `{p.name}` | {show(p.default)} | {span(p)} | {"yes" if p.safe else "no"} | '
              f'{p.description} |' for p in PARAMETERS]
     return '\n'.join(rows)
+
+
+# -- validation before the node starts (no rclpy) ------------------------------------------------
+# rclpy refuses a value outside a parameter's range or of another type with a 31-line traceback
+# (InvalidParameterValueException) from inside the node's constructor. The command line checks
+# the same rules first and says what is wrong on one line.
+
+ROS_PARAMETERS = {'use_sim_time': False, 'start_type_description_service': True}
+"""Parameters every rclpy node declares itself (their defaults give their types)."""
+
+_VALUE_OPTIONS = {'-r', '--remap', '--log-level', '--log-config-file', '-e', '--enclave',
+                  '--log-file-name'}
+"""ROS arguments that take a value (skipped when looking for parameters)."""
+
+
+class ParameterError(ValueError):
+    """A node parameter that the node would refuse; ``str()`` is one line naming where it
+    was given (``origin``), the parameter and the problem."""
+
+    def __init__(self, origin: str, name: str, message: str):
+        where = ': '.join(part for part in (origin, name) if part)
+        super().__init__(f'{where}: {message}' if where else message)
+        self.origin = origin
+        self.name = name
+        self.message = message
+
+
+def check_parameter(name: str, value, origin: str = ''):
+    """``value`` if the node accepts it for ``name`` (rclpy's rules: the default's type, no
+    integer for a floating-point parameter, the range, the choices); else ParameterError."""
+    if name in ROS_PARAMETERS:
+        if not isinstance(value, bool):
+            raise ParameterError(origin, name, f'expected true or false, got {value!r}')
+        return value
+    spec = BY_NAME.get(name)
+    if spec is None:
+        raise ParameterError(origin, name, 'unknown parameter of the twin node (see '
+                                           'docs/ROS-INTERFACE.md)')
+    default = spec.default
+    if isinstance(default, bool):
+        if not isinstance(value, bool):
+            raise ParameterError(origin, name, f'expected true or false, got {value!r}')
+    elif isinstance(default, int):
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ParameterError(origin, name, f'expected an integer, got {value!r}')
+    elif isinstance(default, float):
+        if isinstance(value, str):
+            try:
+                value = float(value)                     # rcl reads 'inf', 'nan' with strtod
+            except ValueError:
+                pass
+        if isinstance(value, int) and not isinstance(value, bool):
+            _check_range(spec, float(value), origin)
+            raise ParameterError(origin, name, f'expected a floating-point number (ROS takes '
+                                               f'no integer for it: write {value}.0), got '
+                                               f'{value}')
+        if not isinstance(value, float):
+            raise ParameterError(origin, name, f'expected a number, got {value!r}')
+        if value != value or value in (float('inf'), float('-inf')):
+            raise ParameterError(origin, name, f'must be finite, got {value}')
+    elif isinstance(default, str):
+        if not isinstance(value, str):
+            raise ParameterError(origin, name, f'expected a string, got {value!r}')
+    elif isinstance(default, tuple):
+        if not (isinstance(value, list) and all(isinstance(v, str) for v in value)):
+            raise ParameterError(origin, name, f'expected a list of strings, got {value!r}')
+    _check_range(spec, value, origin)
+    if spec.choices and value not in spec.choices:
+        raise ParameterError(origin, name, f'must be one of {", ".join(spec.choices)}; got '
+                                           f'{value!r}')
+    return value
+
+
+def _check_range(spec: ParameterSpec, value, origin: str) -> None:
+    if spec.low is not None and not spec.low <= value <= spec.high:
+        raise ParameterError(origin, spec.name, f'must lie in {spec.low:g} ... {spec.high:g}, '
+                                                f'got {value:g}')
+
+
+def parameters_from_ros_arguments(ros_args: list[str],
+                                  node_name: str = 'drill_twin') -> list[tuple[str, str, object]]:
+    """(origin, name, value) of every parameter of the node in ``ros_args`` (--params-file
+    files and -p/--param rules), in the order rcl applies them (the last one wins).
+
+    Raises ParameterError for a file that cannot be read or a rule that cannot be parsed.
+    """
+    found = []
+    tokens = iter(ros_args)
+    for token in tokens:
+        if token == '--params-file':
+            path = next(tokens, None)
+            if path is None:
+                raise ParameterError('--params-file', '', 'a file name is needed')
+            found.extend((path, name, value) for name, value in parameters_in_file(path,
+                                                                                node_name))
+        elif token in ('-p', '--param'):
+            rule = next(tokens, None)
+            origin = f'--ros-args {token}'
+            if rule is None or ':=' not in rule:
+                raise ParameterError(origin, '', f'expected name:=value, got {rule!r}')
+            name, text = rule.split(':=', 1)
+            if ':' in name:                              # node:name applies to that node only
+                target, name = name.split(':', 1)
+                if target.strip('/').split('/')[-1] not in (node_name, '*', '**'):
+                    continue
+            found.append((origin, name, _parse_value(text, origin, name)))
+        elif token in _VALUE_OPTIONS:
+            next(tokens, None)
+    return found
+
+
+def parameters_in_file(path: str, node_name: str = 'drill_twin') -> list[tuple[str, object]]:
+    """(name, value) of the node's parameters in a ROS 2 parameter file: every
+    ``ros__parameters`` mapping under the node's name, ``/**`` or ``/*`` (namespaces
+    allowed), nested mappings flattened to dotted names."""
+    from drill_twin.config import yaml_io
+    import yaml
+
+    try:
+        with open(path, 'rb') as handle:
+            content = handle.read(1 << 20)
+        data = yaml_io.safe_load(content.decode('utf-8'))
+    except OSError as error:
+        raise ParameterError(path, '', f'cannot read: {error.strerror or error}') from None
+    except UnicodeDecodeError:
+        raise ParameterError(path, '', 'not a UTF-8 text file') from None
+    except yaml.YAMLError as error:
+        mark = getattr(error, 'problem_mark', None)
+        where = f'line {mark.line + 1}' if mark is not None else ''
+        raise ParameterError(path, where, 'YAML syntax error: ' + str(
+            getattr(error, 'problem', None) or error).splitlines()[0]) from None
+    if not isinstance(data, dict):
+        raise ParameterError(path, '', 'expected a mapping of node names to ros__parameters')
+    found = []
+
+    def walk(mapping, names):
+        for key, value in mapping.items():
+            if key == 'ros__parameters':
+                target = '/'.join(names).strip('/').split('/')[-1] if names else ''
+                if target in (node_name, '*', '**'):
+                    if not isinstance(value, dict):
+                        raise ParameterError(path, '/'.join(names), 'ros__parameters must be '
+                                                                    'a mapping')
+                    found.extend(_flatten(value, ''))
+            elif isinstance(value, dict):
+                walk(value, names + [str(key)])
+
+    walk(data, [])
+    return found
+
+
+def validate_ros_arguments(ros_args: list[str], node_name: str = 'drill_twin') -> dict:
+    """The parameters the node will start with (defaults, then ``ros_args`` in order), each
+    checked by :func:`check_parameter`; raises ParameterError on the first bad one."""
+    values = {spec.name: (list(spec.default) if isinstance(spec.default, tuple)
+                          else spec.default) for spec in PARAMETERS}
+    for origin, name, value in parameters_from_ros_arguments(ros_args, node_name):
+        values[name] = check_parameter(name, value, origin)
+    if values['hook_load_min_n'] > values['hook_load_max_n']:
+        raise ParameterError('parameters', 'hook_load_min_n',
+                             f'{values["hook_load_min_n"]:g} exceeds hook_load_max_n '
+                             f'({values["hook_load_max_n"]:g})')
+    return values
+
+
+def model_overrides(values: dict) -> list[str]:
+    """The ``--set`` items the node applies to its model configuration: ``time_step_s``
+    (when > 0) first, then ``model_overrides``."""
+    overrides = [item for item in (values.get('model_overrides') or []) if item]
+    if values.get('time_step_s', 0) > 0:
+        overrides.insert(0, f'integration.time_step_s={values["time_step_s"]!r}')
+    return overrides
+
+
+def _parse_value(text: str, origin: str, name: str):
+    from drill_twin.config import yaml_io
+    import yaml
+
+    try:
+        return yaml_io.safe_load(text)
+    except yaml.YAMLError:
+        raise ParameterError(origin, name, f'cannot parse the value {text!r}') from None
+
+
+def _flatten(mapping: dict, prefix: str):
+    for key, value in mapping.items():
+        name = f'{prefix}{key}'
+        if isinstance(value, dict):
+            yield from _flatten(value, name + '.')
+        else:
+            yield name, value

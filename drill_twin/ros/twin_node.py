@@ -392,11 +392,21 @@ def run(ros_args: list[str]) -> int:
 
 
 def _run(ros_args: list[str]) -> int:
-    rclpy.init(args=ros_args)
+    from rclpy.exceptions import ParameterException
+
+    def _first_line(error):
+        return (str(error).strip().splitlines() or [type(error).__name__])[0]
+
     node = None
-    executor = SingleThreadedExecutor()
+    executor = None
     status = 0
     try:
+        try:
+            rclpy.init(args=ros_args)
+        except RCLError as error:
+            print(f'drill-twin: ROS arguments: {_first_line(error)}', file=sys.stderr)
+            return 2
+        executor = SingleThreadedExecutor()
         node = TwinNode()
         executor.add_node(node)
         executor.spin_until_future_complete(node.done)
@@ -408,6 +418,10 @@ def _run(ros_args: list[str]) -> int:
         if rclpy.ok():
             raise
         # A signal shut the context down while the node was starting: a normal stop.
+    except ParameterException as error:
+        # Backstop: the command line checks every parameter before the node starts.
+        print(f'drill-twin: parameter: {_first_line(error)}', file=sys.stderr)
+        status = 2
     except LogDirectoryError as error:
         print(f'drill-twin: {error} (on_log_error: exit)', file=sys.stderr)
         status = 1
@@ -415,6 +429,7 @@ def _run(ros_args: list[str]) -> int:
         if node is not None:
             node.close()
             node.destroy_node()
-        executor.shutdown()
+        if executor is not None:
+            executor.shutdown()
         rclpy.try_shutdown()
     return status
