@@ -204,13 +204,20 @@ def _rosout(run: RunColumns, type_name: str, data: bytes, t_s: float) -> None:
 def geometry_of(run: RunColumns, stations_m: Sequence[float] | None = None
                 ) -> layout.StringGeometry:
     """The string's geometry from the log's configuration (the built-in one if the log has
-    none) and its stations (given, else those with a displacement topic in the log)."""
+    none or an unreadable one) and its stations (given, else those with a displacement topic in the log)."""
     import yaml
 
-    from drill_twin.config import build_config, load_config
+    from drill_twin.config import build_config, ConfigError, load_config
 
+    config = None
     text = run.metadata.get('config')
-    config = build_config(yaml.safe_load(text), source='log') if text else load_config(None)
+    if text:
+        try:
+            config = build_config(yaml.safe_load(text), source='log')
+        except (ConfigError, yaml.YAMLError, TypeError, ValueError):
+            config = None                      # not a twin configuration: sizes as built in
+    if config is None:
+        config = load_config(None)
     if stations_m is None:
         stations_m = stations_from_topics(run.topics)
     return layout.StringGeometry.from_config(config, stations_m)
