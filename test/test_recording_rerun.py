@@ -84,6 +84,9 @@ class Capture:
         assert static
         self.static.setdefault(entity, []).append(archetype)
 
+    def flush(self):
+        pass
+
     def rows(self, entity, component='Scalars:scalars'):
         """(times, values) of an entity over all its sends."""
         times = np.concatenate([t for t, _ in self.sent[entity]])
