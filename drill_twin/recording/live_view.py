@@ -17,6 +17,10 @@ import numpy as np
 
 from drill_twin.recording import rerun_layout as layout
 
+NO_DISPLAY_HINT = ('--view: no display (DISPLAY and WAYLAND_DISPLAY are unset): add --web to '
+                   "serve rerun's web viewer on localhost, or look at the log afterwards with "
+                   '`drill-twin view LOG --rrd OUT.rrd`')
+
 _BIT_FIELDS = ('depth_m', 'rop_m_per_s', 'weight_on_bit_n', 'angle_rad', 'speed_rad_per_s',
                'torque_on_bit_nm')
 
