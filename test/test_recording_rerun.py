@@ -268,7 +268,8 @@ def test_save_rrd_is_self_contained_with_blueprint(log_path, rerun_env, tmp_path
     subprocess.run([rerun_executable(), 'rrd', 'verify', str(rrd)], env=rerun_env,
                    check=True, capture_output=True, timeout=60)
     columns = rrd_chunks(rrd, rerun_env)
-    for entity, column in (('/bit/speed', 'Scalars:scalars'), ('/top/hook_load', 'Scalars:scalars'),
+    for entity, column in (('/bit/speed', 'Scalars:scalars'),
+                           ('/top/hook_load', 'Scalars:scalars'),
                            ('/kpi/ssi', 'Scalars:scalars'),
                            ('/ensemble/rop/band', 'Scalars:scalars'),
                            ('/lateral/x600m/orbit', 'LineStrips2D:strips'),

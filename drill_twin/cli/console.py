@@ -3,7 +3,8 @@
 Pure formatting of :class:`~drill_twin.twin.engine.TwinSnapshot` figures (no ROS, no I/O
 except :class:`StatusPrinter`, which writes to the stream it is given)::
 
-    t 125.3 s  RTF 1.00  depth 1601.42 m  bit 48 rpm (surface 50)  ROP 8.1 m/h  SSI 0.84  events 2 impacts, 1 lift-off
+    t 125.3 s  RTF 1.00  depth 1601.42 m  bit 48 rpm (surface 50)  ROP 8.1 m/h  SSI 0.84 \
+    events 2 impacts, 1 lift-off          (one line on the terminal)
 
 Units: drilling units on screen (rpm, m/h), SI in the snapshot.
 """

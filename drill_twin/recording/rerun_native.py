@@ -30,7 +30,6 @@ PROFILE_RATE_HZ = 10.0
 HEALTH_NAME = 'drill_twin: twin health'
 
 _STATION = re.compile(r'^/drill_twin/vibration/x(\d+)(?:p(\d+))?m/displacement$')
-LogSource = 'str | os.PathLike | Sequence[str | os.PathLike]'
 
 
 class LogNotFound(FileNotFoundError):
@@ -204,7 +203,8 @@ def _rosout(run: RunColumns, type_name: str, data: bytes, t_s: float) -> None:
 def geometry_of(run: RunColumns, stations_m: Sequence[float] | None = None
                 ) -> layout.StringGeometry:
     """The string's geometry from the log's configuration (the built-in one if the log has
-    none or an unreadable one) and its stations (given, else those with a displacement topic in the log)."""
+    none or an unreadable one) and its stations (given, else those with a displacement
+    topic in the log)."""
     import yaml
 
     from drill_twin.config import build_config, ConfigError, load_config
