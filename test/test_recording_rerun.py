@@ -374,6 +374,7 @@ def test_web_viewer_serves_on_localhost_only(log_path, rerun_env, tmp_path):
     finally:
         process.terminate()
         process.wait(timeout=30)
+    assert not _listening(port) and not _listening(web_port)   # no viewer left behind
     assert (tmp_path / 'twin.rrd').stat().st_size > 0
 
 

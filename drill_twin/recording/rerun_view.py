@@ -50,7 +50,17 @@ def save_rrd(source, rrd_path: str | os.PathLike, stations_m: Sequence[float] | 
 
 
 def rerun_executable() -> str:
-    """Find the rerun viewer: next to this Python (a venv's ``bin/rerun``), else on PATH."""
+    """Find the rerun viewer binary: the one the rerun-sdk wheel ships (``rerun_cli/rerun``;
+    the ``bin/rerun`` script only runs it as a child, which outlives a terminated script),
+    else next to this Python (a venv's ``bin/rerun``), else on PATH."""
+    try:
+        import rerun_cli
+
+        binary = Path(rerun_cli.__file__).with_name('rerun')
+        if binary.is_file() and os.access(binary, os.X_OK):
+            return str(binary)
+    except ImportError:
+        pass
     beside = Path(sys.executable).with_name('rerun')
     if beside.is_file() and os.access(beside, os.X_OK):
         return str(beside)
