@@ -45,7 +45,8 @@ def main(argv=None) -> int:
     files = log_files(args.log)
     geometry = geometry_of(read_run(files))
     args.out.mkdir(parents=True, exist_ok=True)
-    env = dict(os.environ, RERUN=os.environ.get('RERUN', rerun_executable()))
+    env = dict(os.environ, RERUN=os.environ.get('RERUN', rerun_executable()),
+               WAIT=os.environ.get('WAIT', '120'))      # a loaded machine is slow
     with tempfile.TemporaryDirectory(prefix='drill_twin_shots_') as directory:
         rrd = save_rrd(files, Path(directory) / 'run.rrd')
         for tab in tabs:

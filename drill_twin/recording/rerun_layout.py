@@ -48,6 +48,7 @@ TRAIL_S = 10.0
 BLUE, ORANGE, GREEN, RED, GREY, DARK = ((40, 110, 230), (245, 140, 40), (60, 170, 90),
                                         (225, 60, 60), (140, 140, 140), (70, 70, 70))
 PURPLE = (150, 90, 200)
+LIGHT = (225, 225, 225)        # on rerun's dark plot background
 BAND = (175, 200, 245)
 
 
@@ -108,7 +109,7 @@ _LINES = {
     # entity: (legend name, colour, width)
     'bit/depth': ('bit depth', BLUE, 2.0),
     'bit/rop': ('ROP (instant)', BLUE, 1.5),
-    'kpi/rop': ('ROP (window mean)', DARK, 2.5),
+    'kpi/rop': ('ROP (window mean)', LIGHT, 2.5),
     'bit/speed': ('bit', BLUE, 1.5),
     'top/speed': ('surface (top drive)', ORANGE, 2.5),
     'bit/wob': ('WOB', BLUE, 1.5),
@@ -126,8 +127,8 @@ _LINES = {
     'diagnostics/resets': ('member resets', RED, 2.0),
 }
 _POINTS = {
-    'cmd/top_drive_speed': ('command', DARK, 5.0),
-    'cmd/hook_load': ('command', DARK, 5.0),
+    'cmd/top_drive_speed': ('command', LIGHT, 5.0),
+    'cmd/hook_load': ('command', LIGHT, 5.0),
 }
 ENSEMBLE_QUANTITIES = {
     # key: (title, unit)
@@ -181,14 +182,15 @@ def _log_cross_section(recording, entity: str, borehole_m: float, outer_m: float
         centers=[(0.0, 0.0)], half_sizes=[(gap_mm, gap_mm)], colors=RED, line_radii=0.6,
         draw_order=2.0), static=True)
     tick = _scale_mm(wall_mm)
-    below = wall_mm + 14.0
-    recording.log(f'{entity}/axes', rr.LineStrips2D(
+    top = -wall_mm - 4.0                     # scale bar and axis names in the top corners,
+    recording.log(f'{entity}/axes', rr.LineStrips2D(   # outside the wall circle
         [[(-wall_mm, 0.0), (wall_mm, 0.0)], [(0.0, -wall_mm), (0.0, wall_mm)],
-         [(-wall_mm, below), (-wall_mm + tick, below)]],
+         [(-wall_mm - 10.0, top), (-wall_mm - 10.0 + tick, top)]],
         colors=[GREY, GREY, DARK], radii=[0.3, 0.3, 1.2], draw_order=0.5), static=True)
+    # (a pointer resting in the middle of a view shows a tooltip: no labels there)
     recording.log(f'{entity}/labels', rr.Points2D(
-        [(wall_mm + 10.0, 0.0), (0.0, wall_mm + 10.0), (-wall_mm + tick / 2, below + 12.0)],
-        radii=0.01, colors=DARK, labels=['v', 'w', f'{tick:g} mm'], show_labels=True),
+        [(wall_mm - 10.0, top + 2.0), (-wall_mm - 10.0 + tick / 2, top + 14.0)],
+        radii=0.01, colors=DARK, labels=['v →  w ↓', f'{tick:g} mm'], show_labels=True),
         static=True)
     del outer_m                                          # the pipe is drawn with the data
 
@@ -440,7 +442,7 @@ def _bit_tab():
 
     return rrb.Grid(
         _series('Bit depth (m)', ['bit/depth']),
-        _series('ROP (m/h): instant, window mean (black)', ['bit/rop', 'kpi/rop']),
+        _series('ROP (m/h): instant (blue), window mean (white)', ['bit/rop', 'kpi/rop']),
         _series('Speed (rpm): bit (blue), surface (orange)', ['bit/speed', 'top/speed']),
         _series('Weight on bit (kN)', ['bit/wob']),
         _series('Torque on bit (kN·m)', ['bit/tob']),
@@ -456,7 +458,7 @@ def _driller_tab():
         _series('Surface torque (kN·m)', ['top/torque']),
         _series('Hook load (kN), commands as dots', ['top/hook_load', 'cmd/hook_load']),
         _series('Weight on bit (kN)', ['bit/wob']),
-        _series('ROP (m/h): instant, window mean (black)', ['bit/rop', 'kpi/rop']),
+        _series('ROP (m/h): instant (blue), window mean (white)', ['bit/rop', 'kpi/rop']),
         _series('Stick-slip severity SSI (-)', ['kpi/ssi']),
         grid_columns=2, name=TAB_TITLES['driller'])
 
@@ -475,18 +477,15 @@ def _orbit_view(geometry: StringGeometry, index: int):
         origin=entity, contents=[f'{entity}/{part}' for part in (
             'wall', 'contact_circle', 'axes', 'labels', 'orbit', 'pipe')],
         visual_bounds=rrb.VisualBounds2D(x_range=[-reach, reach],
-                                         y_range=[-reach, reach + 36.0]),
+                                         y_range=[-reach - 10.0, reach]),
         background=rrb.Background(color=(255, 255, 255)),
         overrides={f'{entity}/orbit': [trail]})
 
 
 LATERAL_HELP = (
-    'Orbits: looking down the hole (v right, w down) at the cursor time. Black: borehole '
-    'wall; orange: the pipe or collar; blue: the path of its centre over the last {trail:g} s; '
-    'red: where the centre is when the pipe touches the wall.\n\n'
-    'Radial deflection: distance of the centre from the hole axis; red line: wall contact.'
-    '\n\nAlong the string (at the cursor): wall contact force at every node, and each '
-    "station's deflection as a share of its clearance (100 % = on the wall).")
+    'Orbits look down the hole at the cursor time: black the borehole wall, orange the pipe '
+    '(or collar), blue the path of its centre over the last {trail:g} s, red where the '
+    'centre is when the pipe touches the wall. Bar charts: along the string, at the cursor.')
 
 
 def _lateral_tab(geometry: StringGeometry):
@@ -512,8 +511,8 @@ def _lateral_tab(geometry: StringGeometry):
         grid, rrb.Horizontal(
             _series('Largest wall contact force along the string (kN)', ['contact/max_force']),
             rrb.TextDocumentView(name='How to read', origin='lateral/help'),
-            column_shares=[3, 2]),
-        row_shares=[4, 1], name=TAB_TITLES['lateral'])
+            column_shares=[1, 1]),
+        row_shares=[3, 1], name=TAB_TITLES['lateral'])
 
 
 def _ensemble_tab():
