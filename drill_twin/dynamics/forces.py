@@ -1,4 +1,11 @@
-"""The non-linear force vector f_NL of Eq. 31, evaluated for a batch of members."""
+"""The non-linear force vector f_NL of Eq. 31, evaluated for a batch of members.
+
+The finite-strain, kinetic-coupling and contact forces are accumulated by compiled kernels
+(``finite_strain``, ``kinetic_coupling``, ``contact``) into one force array laid out members
+last, (n_dofs, m); its work arrays belong to a :class:`Workspace` made once per batch size.
+What an evaluation returns is new arrays: the integrator keeps evaluations across iterations
+and steps. The projection on the reduced basis stays a dense (BLAS) product.
+"""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -6,10 +13,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from drill_twin.dynamics.bit_rock import BitRockLaw
-from drill_twin.dynamics.contact import ContactForces, contact_force
-from drill_twin.dynamics.finite_strain import finite_strain_force
-from drill_twin.dynamics.kinetic_coupling import kinetic_coupling_force
+from drill_twin.dynamics.contact import ContactForces, accumulate_contact
+from drill_twin.dynamics.finite_strain import StrainOperators, accumulate_finite_strain
+from drill_twin.dynamics.kinetic_coupling import CouplingOperators, accumulate_kinetic_coupling
 from drill_twin.dynamics.reduced_system import ReducedSystem
+from drill_twin.fem import strain_energy as se
 
 
 @dataclass(frozen=True)
@@ -75,6 +83,32 @@ class ForceEvaluation:
     contact_tangent: np.ndarray | None
 
 
+class Workspace:
+    """Work arrays of the force kernels for a batch of m members (allocated once).
+
+    displacement_t, force_t: (n_dofs, m); theta_x_rate_t, theta_x_acceleration_t:
+    (n_nodes, m); bending_y_rate_t, bending_y_acceleration_t, bending_z_rate_t:
+    (2 n_nodes, m); strain, linear, stress: (8, m); coupling: (9, m); tangent:
+    (m, n_nodes, 2, 2).
+    """
+
+    def __init__(self, system: ReducedSystem, members: int):
+        n_dofs, nodes = system.n_dofs, system.n_nodes
+        self.members = members
+        self.displacement_t = np.empty((n_dofs, members))
+        self.force_t = np.empty((n_dofs, members))
+        self.theta_x_rate_t = np.empty((nodes, members))
+        self.theta_x_acceleration_t = np.empty((nodes, members))
+        self.bending_y_rate_t = np.empty((2 * nodes, members))
+        self.bending_y_acceleration_t = np.empty((2 * nodes, members))
+        self.bending_z_rate_t = np.empty((2 * nodes, members))
+        self.strain = np.empty((se.N_STRAINS, members))
+        self.linear = np.empty((se.N_STRAINS, members))
+        self.stress = np.empty((se.N_STRAINS, members))
+        self.coupling = np.empty((9, members))
+        self.tangent = np.empty((members, nodes, 2, 2))
+
+
 class NonlinearForces:
     """f_ke + f_se + f_ip + f_br of Eq. 31 (g(t) is handled by the integrator)."""
 
@@ -87,26 +121,54 @@ class NonlinearForces:
         self.static_weight_on_bit_n = system.model.prestress.static_weight_on_bit_n
         self.bit_axial_index = system.field(0).start + system.bit_node
         self.bit_torsion_index = system.field(1).start + system.bit_node
+        self.strain_operators = StrainOperators.of(system)
+        self.coupling_operators = CouplingOperators.of(system)
+        self.clearance_m = np.ascontiguousarray(system.clearance_m, dtype=float)
+        self.outer_radius_m = np.ascontiguousarray(system.node_outer_radius_m, dtype=float)
+        self._workspace = None
+
+    def workspace(self, members: int) -> Workspace:
+        """The work arrays for a batch of ``members`` (made again only when m changes)."""
+        if self._workspace is None or self._workspace.members != members:
+            self._workspace = Workspace(self.system, members)
+        return self._workspace
 
     def evaluate(self, fields: Kinematics, germ=None) -> ForceEvaluation:
         """f_NL for the fields of a batch; ``germ`` (m, 2, 2) randomises the bit-rock law."""
         system, physics = self.system, self.physics
         m = fields.displacement.shape[0]
-        force = np.zeros_like(fields.displacement)
+        work = self.workspace(m)
+        force_t = work.force_t
+        force_t.fill(0.0)
+        np.copyto(work.displacement_t, fields.displacement.T)
         if physics.finite_strain:
-            force += finite_strain_force(system, fields.displacement)
+            accumulate_finite_strain(work.displacement_t, *self.strain_operators.arguments(),
+                                     work.strain, work.linear, work.stress, force_t)
         if physics.kinetic_coupling:
-            force += kinetic_coupling_force(system, fields)
+            np.copyto(work.theta_x_rate_t, fields.theta_x_rate.T)
+            np.copyto(work.theta_x_acceleration_t, fields.theta_x_acceleration.T)
+            np.copyto(work.bending_y_rate_t, fields.bending_y_rate.T)
+            np.copyto(work.bending_y_acceleration_t, fields.bending_y_acceleration.T)
+            np.copyto(work.bending_z_rate_t, fields.bending_z_rate.T)
+            accumulate_kinetic_coupling(
+                work.displacement_t, work.theta_x_rate_t, work.theta_x_acceleration_t,
+                work.bending_y_rate_t, work.bending_y_acceleration_t, work.bending_z_rate_t,
+                *self.coupling_operators.arguments(), work.coupling, force_t)
+        radial = np.zeros((m, system.n_nodes))
+        in_contact = np.zeros((m, system.n_nodes), dtype=bool)
         tangent = None
         if physics.contact:
-            wall, contact, tangent = contact_force(
-                system, self.borehole.contact_stiffness_n_per_m,
-                self.borehole.friction_coefficient,
-                self.borehole.friction_regularization_rad_per_s, fields)
-            force += wall
-        else:
-            shape = (m, system.n_nodes)
-            contact = ContactForces(np.zeros(shape), np.zeros(shape, dtype=bool))
+            borehole = self.borehole
+            touching = accumulate_contact(
+                work.displacement_t, np.ascontiguousarray(fields.theta_x_rate, dtype=float),
+                system.n_nodes, self.clearance_m, self.outer_radius_m,
+                float(borehole.contact_stiffness_n_per_m), float(borehole.friction_coefficient),
+                float(borehole.friction_regularization_rad_per_s), force_t, radial, in_contact,
+                work.tangent)
+            if touching:
+                tangent = work.tangent.copy()
+        contact = ContactForces(radial, in_contact)
+        force = np.ascontiguousarray(force_t.T)
         rop = fields.bit_axial_rate
         omega = fields.theta_x_rate[:, system.bit_node]
         if physics.bit_rock:
