@@ -27,13 +27,13 @@ class ContactForces:
 
 
 @kernel
-def accumulate_contact(displacement_t, theta_x_rate, n_nodes, clearance_m, outer_radius_m,
+def accumulate_contact(displacement_t, theta_x_rate_t, n_nodes, clearance_m, outer_radius_m,
                        stiffness_n_per_m, friction, regularization_rad_per_s, force_t,
                        radial_force_n, in_contact, tangent):
     """force_t += f_ip; returns the number of (member, node) pairs in contact.
 
-    displacement_t, force_t: field-wise DOFs, members last (n_dofs, m); theta_x_rate:
-    (m, n_nodes). Outputs, members first: radial_force_n (m, n_nodes) (N), in_contact
+    displacement_t, force_t: field-wise DOFs, members last (n_dofs, m); theta_x_rate_t:
+    (n_nodes, m). Outputs, members first: radial_force_n (m, n_nodes) (N), in_contact
     (m, n_nodes), tangent (m, n_nodes, 2, 2): d(-F)/d(v, w), zero off contact.
     """
     members = displacement_t.shape[1]
@@ -54,7 +54,7 @@ def accumulate_contact(displacement_t, theta_x_rate, n_nodes, clearance_m, outer
                 nv, nw = v / radius, w / radius
                 force_t[v_row + node, i] += -magnitude * nv
                 force_t[w_row + node, i] += -magnitude * nw
-                spin = theta_x_rate[i, node]
+                spin = theta_x_rate_t[node, i]
                 smooth_sign = spin / np.sqrt(spin * spin + eps2)
                 force_t[x_row + node, i] += -friction * magnitude * lever * smooth_sign
                 # d(-F)/d(v, w) = k [n n^T + (penetration / r) (I - n n^T)].
@@ -89,7 +89,8 @@ def contact_force(system, stiffness_n_per_m: float, friction: float,
     flags = np.empty((members, nodes), dtype=bool)
     tangent = np.empty((members, nodes, 2, 2))
     touching = accumulate_contact(
-        displacement_t, np.ascontiguousarray(fields.theta_x_rate, dtype=float), nodes,
+        displacement_t, np.ascontiguousarray(np.asarray(fields.theta_x_rate, dtype=float).T),
+        nodes,
         system.clearance_m, system.node_outer_radius_m, float(stiffness_n_per_m),
         float(friction), float(regularization_rad_per_s), force_t, radial, flags, tangent)
     return (np.ascontiguousarray(force_t.T), ContactForces(radial, flags),

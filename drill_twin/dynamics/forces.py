@@ -41,22 +41,39 @@ class Kinematics:
 
     @classmethod
     def of(cls, system: ReducedSystem, d, v, a, top_speed: float, top_acceleration: float):
-        """Fields of reduced coordinates d, v, a (m, n) and the top-drive speed/acceleration."""
+        """Fields of reduced coordinates d, v, a (m, n) and the top-drive speed/acceleration.
+
+        The arrays are transposed views of members-last arrays (the kernels' layout), so the
+        forces read them without a copy.
+        """
         b = system.blocks
         axial, torsion = b['axial'], b['torsional']
         y, z = b['bending_y'], b['bending_z']
-        m = d.shape[0]
-        bit_row = axial.shapes[system.bit_node]
-        twist = np.concatenate([v[:, torsion.columns], a[:, torsion.columns]]) @ torsion.shapes_t
-        bend = np.concatenate([v[:, y.columns], a[:, y.columns]]) @ y.shapes_t
+        displacement_t = np.empty((system.n_dofs, d.shape[0]))
+        for block in b.values():
+            np.matmul(block.shapes, d[:, block.columns].T, out=displacement_t[block.rows])
+        theta_x_rate_t = torsion.shapes @ v[:, torsion.columns].T
+        theta_x_rate_t += top_speed
+        theta_x_acceleration_t = torsion.shapes @ a[:, torsion.columns].T
+        theta_x_acceleration_t += top_acceleration
         return cls(
-            displacement=system.physical(d),
-            theta_x_rate=twist[:m] + top_speed,
-            theta_x_acceleration=twist[m:] + top_acceleration,
-            bending_y_rate=bend[:m],
-            bending_y_acceleration=bend[m:],
-            bending_z_rate=v[:, z.columns] @ z.shapes_t,
-            bit_axial_rate=v[:, axial.columns] @ bit_row)
+            displacement=displacement_t.T,
+            theta_x_rate=theta_x_rate_t.T,
+            theta_x_acceleration=theta_x_acceleration_t.T,
+            bending_y_rate=(y.shapes @ v[:, y.columns].T).T,
+            bending_y_acceleration=(y.shapes @ a[:, y.columns].T).T,
+            bending_z_rate=(z.shapes @ v[:, z.columns].T).T,
+            bit_axial_rate=v[:, axial.columns] @ axial.shapes[system.bit_node])
+
+
+def members_last(array: np.ndarray, buffer: np.ndarray) -> np.ndarray:
+    """``array`` (m, k) as a C-contiguous (k, m) array: its transpose when that is one (no
+    copy), else a copy into ``buffer``."""
+    transposed = array.T
+    if transposed.flags.c_contiguous and transposed.dtype == np.float64:
+        return transposed
+    np.copyto(buffer, transposed)
+    return buffer
 
 
 @dataclass(frozen=True)
@@ -86,17 +103,16 @@ class ForceEvaluation:
 class Workspace:
     """Work arrays of the force kernels for a batch of m members (allocated once).
 
-    displacement_t, force_t: (n_dofs, m); theta_x_rate_t, theta_x_acceleration_t:
-    (n_nodes, m); bending_y_rate_t, bending_y_acceleration_t, bending_z_rate_t:
-    (2 n_nodes, m); strain, linear, stress: (8, m); coupling: (9, m); tangent:
-    (m, n_nodes, 2, 2).
+    displacement_t: (n_dofs, m); theta_x_rate_t, theta_x_acceleration_t: (n_nodes, m);
+    bending_y_rate_t, bending_y_acceleration_t, bending_z_rate_t: (2 n_nodes, m) (used only
+    when the kinematics are not laid out members last already); strain, linear, stress:
+    (8, m); coupling: (9, m); tangent: (m, n_nodes, 2, 2).
     """
 
     def __init__(self, system: ReducedSystem, members: int):
         n_dofs, nodes = system.n_dofs, system.n_nodes
         self.members = members
         self.displacement_t = np.empty((n_dofs, members))
-        self.force_t = np.empty((n_dofs, members))
         self.theta_x_rate_t = np.empty((nodes, members))
         self.theta_x_acceleration_t = np.empty((nodes, members))
         self.bending_y_rate_t = np.empty((2 * nodes, members))
@@ -134,25 +150,27 @@ class NonlinearForces:
         return self._workspace
 
     def evaluate(self, fields: Kinematics, germ=None) -> ForceEvaluation:
-        """f_NL for the fields of a batch; ``germ`` (m, 2, 2) randomises the bit-rock law."""
+        """f_NL for the fields of a batch; ``germ`` (m, 2, 2) randomises the bit-rock law.
+
+        The arrays of the result are new (the integrator keeps results across iterations);
+        ``full`` and ``modal`` are transposed views of members-last arrays.
+        """
         system, physics = self.system, self.physics
         m = fields.displacement.shape[0]
         work = self.workspace(m)
-        force_t = work.force_t
-        force_t.fill(0.0)
-        np.copyto(work.displacement_t, fields.displacement.T)
+        force_t = np.zeros((system.n_dofs, m))
+        displacement_t = members_last(fields.displacement, work.displacement_t)
+        theta_x_rate_t = members_last(fields.theta_x_rate, work.theta_x_rate_t)
         if physics.finite_strain:
-            accumulate_finite_strain(work.displacement_t, *self.strain_operators.arguments(),
+            accumulate_finite_strain(displacement_t, *self.strain_operators.arguments(),
                                      work.strain, work.linear, work.stress, force_t)
         if physics.kinetic_coupling:
-            np.copyto(work.theta_x_rate_t, fields.theta_x_rate.T)
-            np.copyto(work.theta_x_acceleration_t, fields.theta_x_acceleration.T)
-            np.copyto(work.bending_y_rate_t, fields.bending_y_rate.T)
-            np.copyto(work.bending_y_acceleration_t, fields.bending_y_acceleration.T)
-            np.copyto(work.bending_z_rate_t, fields.bending_z_rate.T)
             accumulate_kinetic_coupling(
-                work.displacement_t, work.theta_x_rate_t, work.theta_x_acceleration_t,
-                work.bending_y_rate_t, work.bending_y_acceleration_t, work.bending_z_rate_t,
+                displacement_t, theta_x_rate_t,
+                members_last(fields.theta_x_acceleration, work.theta_x_acceleration_t),
+                members_last(fields.bending_y_rate, work.bending_y_rate_t),
+                members_last(fields.bending_y_acceleration, work.bending_y_acceleration_t),
+                members_last(fields.bending_z_rate, work.bending_z_rate_t),
                 *self.coupling_operators.arguments(), work.coupling, force_t)
         radial = np.zeros((m, system.n_nodes))
         in_contact = np.zeros((m, system.n_nodes), dtype=bool)
@@ -160,27 +178,29 @@ class NonlinearForces:
         if physics.contact:
             borehole = self.borehole
             touching = accumulate_contact(
-                work.displacement_t, np.ascontiguousarray(fields.theta_x_rate, dtype=float),
-                system.n_nodes, self.clearance_m, self.outer_radius_m,
-                float(borehole.contact_stiffness_n_per_m), float(borehole.friction_coefficient),
+                displacement_t, theta_x_rate_t, system.n_nodes, self.clearance_m,
+                self.outer_radius_m, float(borehole.contact_stiffness_n_per_m),
+                float(borehole.friction_coefficient),
                 float(borehole.friction_regularization_rad_per_s), force_t, radial, in_contact,
                 work.tangent)
             if touching:
                 tangent = work.tangent.copy()
-        contact = ContactForces(radial, in_contact)
-        force = np.ascontiguousarray(force_t.T)
         rop = fields.bit_axial_rate
         omega = fields.theta_x_rate[:, system.bit_node]
         if physics.bit_rock:
             wob, tob, lifted, jacobian = self.law.forces_and_jacobian(rop, omega, germ)
-            force[:, self.bit_axial_index] += wob - self.static_weight_on_bit_n
-            force[:, self.bit_torsion_index] += tob
+            force_t[self.bit_axial_index] += wob - self.static_weight_on_bit_n
+            force_t[self.bit_torsion_index] += tob
         else:
             wob = np.full(m, self.static_weight_on_bit_n)
             tob = np.zeros(m)
             lifted = np.zeros(m, dtype=bool)
             jacobian = np.zeros((m, 2, 2))
-        return ForceEvaluation(full=force, modal=system.project(force), weight_on_bit_n=wob,
+        modal_t = np.empty((system.size, m))
+        for block in system.blocks.values():                  # Phi^T f, block by block
+            np.matmul(block.shapes_t, force_t[block.rows], out=modal_t[block.columns])
+        return ForceEvaluation(full=force_t.T, modal=modal_t.T, weight_on_bit_n=wob,
                                torque_on_bit_nm=tob, rop_m_per_s=rop, bit_speed_rad_per_s=omega,
-                               lifted=lifted, bit_jacobian=jacobian, contact=contact,
+                               lifted=lifted, bit_jacobian=jacobian,
+                               contact=ContactForces(radial, in_contact),
                                contact_tangent=tangent)
