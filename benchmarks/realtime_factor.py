@@ -32,8 +32,8 @@ def measure(config, system, members: int, seconds: float) -> dict:
         simulator.step()
     wall = time.perf_counter() - start
     simulated = steps * simulator.dt
-    return {'members': members, 'time_step_s': simulator.dt, 'wall_per_simulated_s': wall / simulated,
-            'real_time_factor': simulated / wall,
+    return {'members': members, 'time_step_s': simulator.dt,
+            'wall_per_simulated_s': wall / simulated, 'real_time_factor': simulated / wall,
             'evaluations_per_step': (counters.force_evaluations - evaluations_before) / steps}
 
 
@@ -54,8 +54,9 @@ def main() -> None:
               f'{"evals/step":>11}')
         for members in args.members:
             r = measure(config, system, members, args.seconds)
-            print(f'{members:>8} {1e3 * r["time_step_s"]:>8.2f} {r["wall_per_simulated_s"]:>11.3f} '
-                  f'{r["real_time_factor"]:>7.2f} {members * r["real_time_factor"]:>11.1f} '
+            print(f'{members:>8} {1e3 * r["time_step_s"]:>8.2f} '
+                  f'{r["wall_per_simulated_s"]:>11.3f} {r["real_time_factor"]:>7.2f} '
+                  f'{members * r["real_time_factor"]:>11.1f} '
                   f'{r["evaluations_per_step"]:>11.2f}')
 
 

@@ -10,9 +10,11 @@ import pytest
 from conftest import REPO
 
 from drill_twin.config import load_config
+from drill_twin.config.loader import config_to_dict
 from drill_twin.uncertainty.executors import (DaskExecutor, LocalProcessExecutor,
                                               SerialExecutor)
-from drill_twin.uncertainty.montecarlo import QUANTITIES, StudySpec
+from drill_twin.uncertainty.montecarlo import (LARGEST_BATCH, MEAN_MODEL_GERM, QUANTITIES,
+                                               StudySpec, default_batch_size, run_chunk)
 from drill_twin.uncertainty.study import run_study
 
 
@@ -51,6 +53,53 @@ def test_vanishing_dispersion_reproduces_the_mean_model(config):
     rop = small.realizations['rop_m_per_s']
     assert np.abs(rop - small.mean_model['rop_m_per_s']).max() < 1e-4 * np.abs(rop).max()
     assert np.abs(rop - small.mean_model['rop_m_per_s']).max() > 0
+
+
+def test_the_identity_germ_is_the_mean_law(config):
+    """The study integrates its mean model as a batch member with [G] = I: that must be the
+    mean law exactly, lift-off and Jacobian included, on and off the admissible set."""
+    from drill_twin.dynamics.bit_rock import BitRockLaw
+
+    law = BitRockLaw.from_config(config.bit_rock)
+    rng = np.random.default_rng(1)
+    rop = np.concatenate([rng.uniform(-0.01, 0.02, 500), [0.0, 1e-12, 2.6e-3]])
+    omega = np.concatenate([rng.uniform(-2.0, 12.0, 500), [5.2, 1e-12, 0.0]])
+    germ = np.repeat(MEAN_MODEL_GERM[None], rop.size, axis=0)
+    for mean, identity in zip(law.forces_and_jacobian(rop, omega),
+                              law.forces_and_jacobian(rop, omega, germ)):
+        np.testing.assert_array_equal(identity, mean)
+    for mean, identity in zip(law.forces(rop, omega), law.forces(rop, omega, germ)):
+        np.testing.assert_array_equal(identity, mean)
+
+
+def test_the_mean_model_rides_with_the_first_chunk(config, serial_study):
+    """The study's mean model is the mean law's run (to the rounding of its batch), and the
+    first chunk's realizations are those of a chunk without it (to rounding)."""
+    spec = _spec()
+    alone = run_chunk(json.dumps(config_to_dict(config)), spec, (0,), mean_model=False)
+    plain = run_chunk(json.dumps(config_to_dict(config)), spec, (), mean_model=True)
+    assert plain.indices.size == 0 and plain.mean_model is not None
+    for q in QUANTITIES:
+        scale = np.abs(plain.mean_model[q]).max()
+        np.testing.assert_allclose(serial_study.mean_model[q], plain.mean_model[q], rtol=0,
+                                   atol=1e-12 * scale)
+        np.testing.assert_allclose(serial_study.realizations[q][0], alone.series[q][0],
+                                   rtol=0, atol=1e-12 * np.abs(alone.series[q]).max())
+    assert not np.allclose(serial_study.realizations['rop_m_per_s'][0],
+                           serial_study.mean_model['rop_m_per_s'])
+
+
+@pytest.mark.parametrize('samples', [1, 5, 32, 63, 64, 65, 150, 1000])
+@pytest.mark.parametrize('workers', [1, 2, 3, 8])
+def test_default_batches_share_the_work_evenly(samples, workers):
+    batch = default_batch_size(samples, workers)
+    sizes = [len(c) for c in StudySpec(dispersion=0.01, samples=samples, duration_s=1.0, seed=0,
+                                       window_s=1.0, batch_size=batch,
+                                       station_m=700.0).chunks()]
+    assert sum(sizes) == samples and max(sizes) <= LARGEST_BATCH
+    assert max(sizes) - min(sizes) < len(sizes)               # equal but for a remainder
+    if samples >= 2 * workers:
+        assert len(sizes) % workers == 0                     # every worker gets as many
 
 
 def test_envelopes_contain_the_stochastic_mean(serial_study):

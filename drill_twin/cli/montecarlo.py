@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 import os
 
 from drill_twin.cli.common import (UsageError, add_config_arguments, blamed, config_from_args,
@@ -48,8 +49,9 @@ def add_parser(subparsers) -> None:
                              '(default 0; recorded in summary.json)')
     parser.add_argument('--window', type=float, default=50.0, metavar='S',
                         help='stationary window at the end of each run (s, default 50)')
-    parser.add_argument('--batch-size', type=int, default=16, metavar='B',
-                        help='realizations integrated together (bounds memory; default 16)')
+    parser.add_argument('--batch-size', type=int, metavar='B',
+                        help='realizations integrated together (default: chunks of equal '
+                             'size, at most 64, as many as a multiple of the workers)')
     parser.add_argument('--station', type=float, default=700.0, metavar='X',
                         help='depth of the radial-displacement statistics (m, default 700; '
                              'must be one of output.stations_m)')
@@ -72,13 +74,14 @@ def run(args: argparse.Namespace) -> int:
     config = config_from_args(args)
     from drill_twin.dynamics.simulator import SimulationDiverged
     from drill_twin.uncertainty.executors import make_executor
-    from drill_twin.uncertainty.montecarlo import StudySpec
+    from drill_twin.uncertainty.montecarlo import StudySpec, default_batch_size
     from drill_twin.uncertainty.study import run_study
     from drill_twin.uncertainty.study_io import summary, write_study
 
     try:
         spec = StudySpec(dispersion=args.delta, samples=args.samples, duration_s=args.duration,
-                         seed=args.seed, window_s=window, batch_size=args.batch_size,
+                         seed=args.seed, window_s=window,
+                         batch_size=1 if args.batch_size is None else args.batch_size,
                          station_m=args.station)
     except ValueError as error:
         raise UsageError(str(error)) from None
@@ -91,6 +94,8 @@ def run(args: argparse.Namespace) -> int:
     preflight_or_refuse(config, args.overrides)
     executor = make_executor(args.workers, args.scheduler)
     try:
+        if args.batch_size is None:
+            spec = replace(spec, batch_size=default_batch_size(spec.samples, executor.workers))
         result = run_study(config, spec, executor, progress=ProgressBar('montecarlo'))
     except SimulationDiverged as error:
         # Only the mean model's divergence ends a study (realizations are reported).
@@ -102,7 +107,8 @@ def run(args: argparse.Namespace) -> int:
     s = summary(result)
     cov = s['coefficient_of_variation']
     print(f'{s["completed_realizations"]} realizations (delta = {spec.dispersion:g}, seed '
-          f'{spec.seed}) in {s["wall_time_s"]:.1f} s on {s["workers"]} worker(s); '
+          f'{spec.seed}) in {s["wall_time_s"]:.1f} s on {s["workers"]} worker(s), batches of '
+          f'{spec.batch_size}; '
           f'statistics over the last {spec.window_s:g} s')
     print('  coefficients of variation: ' + ', '.join(f'{k} {v:.3g}' for k, v in cov.items()))
     print(f'  realizations with impacts {s["realizations_with_impacts"]}, with lift-off '

@@ -5,12 +5,17 @@ At every node, with r = sqrt(v^2 + w^2) and the clearance c = R_ch - R_o (the pa
 F_r = -k_ip (r - c) along (v, w) / r and the rubbing torque T_x = -mu_ip |F_r| R_o sign(theta_x'),
 with sign regularised as z / sqrt(z^2 + eps^2). k_ip is applied as a concentrated nodal
 stiffness (N/m), as the paper's Sect. 2.4 says ("concentrated forces and torques").
+
+The kernel runs node by node with the members of the batch as the inner axis; the wall is
+touched at a few nodes at most, so its cost is one radius per node and member.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
+
+from drill_twin.dynamics.compiled import kernel
 
 
 @dataclass(frozen=True)
@@ -21,37 +26,72 @@ class ContactForces:
     in_contact: np.ndarray
 
 
+@kernel
+def accumulate_contact(displacement_t, theta_x_rate_t, n_nodes, clearance_m, outer_radius_m,
+                       stiffness_n_per_m, friction, regularization_rad_per_s, force_t,
+                       radial_force_n, in_contact, tangent):
+    """force_t += f_ip; returns the number of (member, node) pairs in contact.
+
+    displacement_t, force_t: field-wise DOFs, members last (n_dofs, m); theta_x_rate_t:
+    (n_nodes, m). Outputs, members first: radial_force_n (m, n_nodes) (N), in_contact
+    (m, n_nodes), tangent (m, n_nodes, 2, 2): d(-F)/d(v, w), zero off contact.
+    """
+    members = displacement_t.shape[1]
+    v_row, w_row, x_row = 2 * n_nodes, 4 * n_nodes, n_nodes
+    eps2 = regularization_rad_per_s ** 2
+    touching = 0
+    for node in range(n_nodes):
+        clearance = clearance_m[node]
+        lever = outer_radius_m[node]
+        for i in range(members):
+            v = displacement_t[v_row + node, i]
+            w = displacement_t[w_row + node, i]
+            radius = np.sqrt(v * v + w * w)
+            penetration = radius - clearance
+            if penetration > 0.0:
+                touching += 1
+                magnitude = stiffness_n_per_m * penetration
+                nv, nw = v / radius, w / radius
+                force_t[v_row + node, i] += -magnitude * nv
+                force_t[w_row + node, i] += -magnitude * nw
+                spin = theta_x_rate_t[node, i]
+                smooth_sign = spin / np.sqrt(spin * spin + eps2)
+                force_t[x_row + node, i] += -friction * magnitude * lever * smooth_sign
+                # d(-F)/d(v, w) = k [n n^T + (penetration / r) (I - n n^T)].
+                ratio = penetration / radius
+                k = stiffness_n_per_m
+                radial_force_n[i, node] = magnitude
+                in_contact[i, node] = True
+                tangent[i, node, 0, 0] = k * (nv * nv + ratio * (1 - nv * nv))
+                tangent[i, node, 1, 1] = k * (nw * nw + ratio * (1 - nw * nw))
+                tangent[i, node, 0, 1] = k * (1 - ratio) * nv * nw
+                tangent[i, node, 1, 0] = tangent[i, node, 0, 1]
+            else:
+                radial_force_n[i, node] = 0.0
+                in_contact[i, node] = False
+                for a in range(2):
+                    for b in range(2):
+                        tangent[i, node, a, b] = 0.0
+    return touching
+
+
 def contact_force(system, stiffness_n_per_m: float, friction: float,
                   regularization_rad_per_s: float, fields):
     """(f_ip on the field-wise DOFs (m, n_dofs), ContactForces, tangent).
 
     tangent: (m, n_nodes, 2, 2) stiffness d(-F)/d(v, w) of every node (zero off contact),
-    used by the Newton iteration.
+    used by the Newton iteration; None when no node of any member touches the wall.
     """
-    u = fields.displacement
-    v_slice, w_slice = system.field(2), system.field(4)
-    v, w = u[:, v_slice], u[:, w_slice]
-    radius = np.sqrt(v * v + w * w)
-    penetration = radius - system.clearance_m
-    in_contact = penetration > 0.0
-    force = np.zeros_like(u)
-    tangent = None
-    if not in_contact.any():
-        return force, ContactForces(np.zeros_like(radius), in_contact), tangent
-    safe_radius = np.where(in_contact, radius, 1.0)
-    magnitude = np.where(in_contact, stiffness_n_per_m * penetration, 0.0)
-    nv, nw = v / safe_radius, w / safe_radius
-    force[:, v_slice] = -magnitude * nv
-    force[:, w_slice] = -magnitude * nw
-    spin = fields.theta_x_rate
-    smooth_sign = spin / np.sqrt(spin * spin + regularization_rad_per_s ** 2)
-    force[:, system.field(1)] = (-friction * magnitude * system.node_outer_radius_m
-                                 * smooth_sign)
-    # d(-F)/d(v, w) = k [n n^T + (penetration / r) (I - n n^T)] on contact.
-    ratio = np.where(in_contact, penetration / safe_radius, 0.0)
-    k = np.where(in_contact, stiffness_n_per_m, 0.0)
-    tangent = np.empty(radius.shape + (2, 2))
-    tangent[..., 0, 0] = k * (nv * nv + ratio * (1 - nv * nv))
-    tangent[..., 1, 1] = k * (nw * nw + ratio * (1 - nw * nw))
-    tangent[..., 0, 1] = tangent[..., 1, 0] = k * (1 - ratio) * nv * nw
-    return force, ContactForces(magnitude, in_contact), tangent
+    displacement_t = np.ascontiguousarray(np.asarray(fields.displacement, dtype=float).T)
+    members, nodes = displacement_t.shape[1], system.n_nodes
+    force_t = np.zeros_like(displacement_t)
+    radial = np.empty((members, nodes))
+    flags = np.empty((members, nodes), dtype=bool)
+    tangent = np.empty((members, nodes, 2, 2))
+    touching = accumulate_contact(
+        displacement_t, np.ascontiguousarray(np.asarray(fields.theta_x_rate, dtype=float).T),
+        nodes,
+        system.clearance_m, system.node_outer_radius_m, float(stiffness_n_per_m),
+        float(friction), float(regularization_rad_per_s), force_t, radial, flags, tangent)
+    return (np.ascontiguousarray(force_t.T), ContactForces(radial, flags),
+            tangent if touching else None)

@@ -2,33 +2,201 @@
 
 f_se = -B^T [dW/dg(g_S + g) - dW/dg(g_S) - H_S g] at every Gauss point: the strain energy's
 force minus its value and tangent at the prestress, which [K] + [K_g] already carry.
-Strains are held component first, (8, P, m), so that every operation runs on contiguous
-memory.
+
+The kernel runs Gauss point by Gauss point with the members of the batch as the inner
+(vector) axis, arrays shaped (n_dofs, m): the 8 strains of a point are gathered from its
+element's DOFs, its stress is computed and scattered straight back, so no array larger than
+(8, m) is made between the displacement and the force.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
+from drill_twin.dynamics.compiled import VECTOR_BATCH, inline, kernel
 from drill_twin.fem import strain_energy as se
 
 
-def nonlinear_stress(system, strain: np.ndarray, linear_stress: np.ndarray) -> np.ndarray:
-    """dW/dg(g_S + g) - dW/dg(g_S) - H_S g, shape (8, P, m), for strains g and their image
-    H_S g by the prestress tangent, both (8, P, m)."""
-    total = [system.prestress_strain_components[k] + strain[k] for k in range(se.N_STRAINS)]
-    stress = np.array(se.stress_components(total, system.section_columns))
-    stress -= system.prestress_stress_components
-    stress -= linear_stress
-    return stress
+@dataclass(frozen=True)
+class StrainOperators:
+    """The finite-strain data of a reduced system, in the kernel's layout.
+
+    strain_pointer, strain_column, strain_value: B in CSR with row 8 p + k for strain k at
+    Gauss point p, columns the field-wise DOFs; tangent_pointer (P + 1,) and tangent_row,
+    tangent_column, tangent_value: the non-zeros of H_S = d2W/dg2(g_S) point by point;
+    prestress_strain, prestress_stress: g_S and dW/dg(g_S), (P, 8); section: (P, 5) columns
+    EA, EI, ER4, kGA, kGI; weight_m: Gauss weights (m), (P,).
+    """
+
+    strain_pointer: np.ndarray
+    strain_column: np.ndarray
+    strain_value: np.ndarray
+    tangent_pointer: np.ndarray
+    tangent_row: np.ndarray
+    tangent_column: np.ndarray
+    tangent_value: np.ndarray
+    prestress_strain: np.ndarray
+    prestress_stress: np.ndarray
+    section: np.ndarray
+    weight_m: np.ndarray
+
+    @classmethod
+    def of(cls, system) -> 'StrainOperators':
+        points = system.n_gauss
+        point_major = (np.arange(points)[:, None]
+                       + points * np.arange(se.N_STRAINS)[None, :]).ravel()
+        strain = system.strain_operator[point_major].tocsr()
+        strain.sort_indices()
+        tangent = system.prestress_tangent
+        point, row, column = np.nonzero(tangent)              # sorted by point
+        pointer = np.searchsorted(point, np.arange(points + 1))
+        s = system.section
+        return cls(
+            strain_pointer=strain.indptr.astype(np.int64),
+            strain_column=strain.indices.astype(np.int64),
+            strain_value=strain.data.astype(float),
+            tangent_pointer=pointer.astype(np.int64), tangent_row=row.astype(np.int64),
+            tangent_column=column.astype(np.int64),
+            tangent_value=tangent[point, row, column].astype(float),
+            prestress_strain=np.ascontiguousarray(system.prestress_strain, dtype=float),
+            prestress_stress=np.ascontiguousarray(system.prestress_stress, dtype=float),
+            section=np.ascontiguousarray(np.stack([s.EA, s.EI, s.ER4, s.kGA, s.kGI], axis=1),
+                                         dtype=float),
+            weight_m=np.ascontiguousarray(system.gauss_weight_m, dtype=float))
+
+    def arguments(self) -> tuple:
+        """The kernel's operator arguments, in its order."""
+        return (self.strain_pointer, self.strain_column, self.strain_value,
+                self.tangent_pointer, self.tangent_row, self.tangent_column, self.tangent_value,
+                self.prestress_strain, self.prestress_stress, self.section, self.weight_m)
 
 
-def finite_strain_force(system, displacement: np.ndarray) -> np.ndarray:
+@inline
+def _stress(e, a, b, ky, kz, tau, ty, tz, ea, ei, er4, kga, kgi):
+    """dW/dg at the strains g = (e, a, b, kappa_y, kappa_z, tau, theta_y, theta_z) of a
+    section (EA, EI, ER4, kGA, kGI): fem.strain_energy.stress_components, term by term."""
+    one_e = 1 + e
+    p = tau * ty - kz
+    q = ky + tau * tz
+    c0 = e + 0.5 * (e * e + a * a + b * b)
+    c1 = p * one_e + b * tau
+    c2 = q * one_e - a * tau
+    c11 = 0.5 * (p * p + tau * tau)
+    c22 = 0.5 * (q * q + tau * tau)
+    c12 = p * q
+    s1 = kga * (a - tz * one_e)
+    s2 = kga * (b + ty * one_e)
+    t1 = kgi * (tz * p)
+    t2 = kgi * (tau + tz * q)
+    t3 = kgi * (tau + ty * p)
+    t4 = kgi * (ty * q)
+    w0 = ea * c0 + ei * (c11 + c22)
+    w1 = ei * c1
+    w2 = ei * c2
+    w11 = ei * c0 + er4 * (3 * c11 + c22)
+    w22 = ei * c0 + er4 * (3 * c22 + c11)
+    w12 = er4 * c12
+    dp = w1 * one_e + w11 * p + w12 * q + t1 * tz + t3 * ty
+    dq = w2 * one_e + w22 * q + w12 * p + t2 * tz + t4 * ty
+    return (w0 * one_e + w1 * p + w2 * q - s1 * tz + s2 * ty,
+            w0 * a - w2 * tau + s1,
+            w0 * b + w1 * tau + s2,
+            dq,
+            -dp,
+            w1 * b - w2 * a + (w11 + w22) * tau + t2 + t3 + dp * ty + dq * tz,
+            s2 * one_e + t3 * p + t4 * q + dp * tau,
+            -s1 * one_e + t1 * p + t2 * q + dq * tau)
+
+
+@kernel
+def accumulate_finite_strain(displacement_t, strain_pointer, strain_column, strain_value,
+                             tangent_pointer, tangent_row, tangent_column, tangent_value,
+                             prestress_strain, prestress_stress, section, weight_m,
+                             strain, linear, stress, force_t):
+    """force_t += f_se for displacements u (both (n_dofs, m), members last).
+
+    strain, linear, stress: work arrays (8, m) (g, H_S g and the weighted stress of a point).
+    Small batches run member by member (short vector loops cost more than they save).
+    """
+    members = displacement_t.shape[1]
+    if members < VECTOR_BATCH:
+        for i in range(members):
+            _accumulate_member(displacement_t, i, strain_pointer, strain_column, strain_value,
+                               tangent_pointer, tangent_row, tangent_column, tangent_value,
+                               prestress_strain, prestress_stress, section, weight_m,
+                               strain, linear, stress, force_t)
+        return
+    for p in range(weight_m.shape[0]):
+        for k in range(8):
+            row = 8 * p + k
+            for i in range(members):
+                strain[k, i] = 0.0
+                linear[k, i] = 0.0
+            for j in range(strain_pointer[row], strain_pointer[row + 1]):
+                column, value = strain_column[j], strain_value[j]
+                for i in range(members):
+                    strain[k, i] += value * displacement_t[column, i]
+        for j in range(tangent_pointer[p], tangent_pointer[p + 1]):
+            k, l, value = tangent_row[j], tangent_column[j], tangent_value[j]
+            for i in range(members):
+                linear[k, i] += value * strain[l, i]
+        g, s, w = prestress_strain[p], section[p], weight_m[p]
+        for i in range(members):
+            sigma = _stress(g[0] + strain[0, i], g[1] + strain[1, i], g[2] + strain[2, i],
+                            g[3] + strain[3, i], g[4] + strain[4, i], g[5] + strain[5, i],
+                            g[6] + strain[6, i], g[7] + strain[7, i], s[0], s[1], s[2], s[3],
+                            s[4])
+            for k in range(8):
+                stress[k, i] = ((sigma[k] - prestress_stress[p, k]) - linear[k, i]) * w
+        for k in range(8):
+            row = 8 * p + k
+            for j in range(strain_pointer[row], strain_pointer[row + 1]):
+                column, value = strain_column[j], strain_value[j]
+                for i in range(members):
+                    force_t[column, i] -= value * stress[k, i]
+
+
+@inline
+def _accumulate_member(displacement_t, i, strain_pointer, strain_column, strain_value,
+                       tangent_pointer, tangent_row, tangent_column, tangent_value,
+                       prestress_strain, prestress_stress, section, weight_m, strain, linear,
+                       stress, force_t):
+    """The loop of :func:`accumulate_finite_strain` for member i alone (column i of the work
+    arrays)."""
+    for p in range(weight_m.shape[0]):
+        for k in range(8):
+            row = 8 * p + k
+            total = 0.0
+            for j in range(strain_pointer[row], strain_pointer[row + 1]):
+                total += strain_value[j] * displacement_t[strain_column[j], i]
+            strain[k, i] = total
+            linear[k, i] = 0.0
+        for j in range(tangent_pointer[p], tangent_pointer[p + 1]):
+            linear[tangent_row[j], i] += tangent_value[j] * strain[tangent_column[j], i]
+        g, s, w = prestress_strain[p], section[p], weight_m[p]
+        sigma = _stress(g[0] + strain[0, i], g[1] + strain[1, i], g[2] + strain[2, i],
+                        g[3] + strain[3, i], g[4] + strain[4, i], g[5] + strain[5, i],
+                        g[6] + strain[6, i], g[7] + strain[7, i], s[0], s[1], s[2], s[3], s[4])
+        for k in range(8):
+            stress[k, i] = ((sigma[k] - prestress_stress[p, k]) - linear[k, i]) * w
+        for k in range(8):
+            row = 8 * p + k
+            for j in range(strain_pointer[row], strain_pointer[row + 1]):
+                force_t[strain_column[j], i] -= strain_value[j] * stress[k, i]
+
+
+def finite_strain_force(system, displacement: np.ndarray,
+                        operators: StrainOperators | None = None) -> np.ndarray:
     """f_se on the field-wise DOFs (right-hand side), shape (m, n_dofs).
 
-    displacement: u from the prestressed state, shape (m, n_dofs).
+    displacement: u from the prestressed state, shape (m, n_dofs). ``operators`` (built from
+    ``system`` when not given) are :meth:`StrainOperators.of` the system.
     """
-    m = displacement.shape[0]
-    both = (system.strain_and_tangent_operator @ displacement.T).reshape(
-        2, se.N_STRAINS, system.n_gauss, m)
-    stress = nonlinear_stress(system, both[0], both[1]) * system.gauss_weight_m[None, :, None]
-    return -(system.strain_operator_t @ stress.reshape(-1, m)).T
+    operators = operators or StrainOperators.of(system)
+    members = displacement.shape[0]
+    displacement_t = np.ascontiguousarray(displacement.T, dtype=float)
+    force_t = np.zeros_like(displacement_t)
+    work = [np.empty((se.N_STRAINS, members)) for _ in range(3)]
+    accumulate_finite_strain(displacement_t, *operators.arguments(), *work, force_t)
+    return np.ascontiguousarray(force_t.T)

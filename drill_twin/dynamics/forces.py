@@ -1,4 +1,11 @@
-"""The non-linear force vector f_NL of Eq. 31, evaluated for a batch of members."""
+"""The non-linear force vector f_NL of Eq. 31, evaluated for a batch of members.
+
+The finite-strain, kinetic-coupling and contact forces are accumulated by compiled kernels
+(``finite_strain``, ``kinetic_coupling``, ``contact``) into one force array laid out members
+last, (n_dofs, m); its work arrays belong to a :class:`Workspace` made once per batch size.
+What an evaluation returns is new arrays: the integrator keeps evaluations across iterations
+and steps. The projection on the reduced basis stays a dense (BLAS) product.
+"""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -6,10 +13,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from drill_twin.dynamics.bit_rock import BitRockLaw
-from drill_twin.dynamics.contact import ContactForces, contact_force
-from drill_twin.dynamics.finite_strain import finite_strain_force
-from drill_twin.dynamics.kinetic_coupling import kinetic_coupling_force
+from drill_twin.dynamics.contact import ContactForces, accumulate_contact
+from drill_twin.dynamics.finite_strain import StrainOperators, accumulate_finite_strain
+from drill_twin.dynamics.kinetic_coupling import CouplingOperators, accumulate_kinetic_coupling
 from drill_twin.dynamics.reduced_system import ReducedSystem
+from drill_twin.fem import strain_energy as se
 
 
 @dataclass(frozen=True)
@@ -33,22 +41,39 @@ class Kinematics:
 
     @classmethod
     def of(cls, system: ReducedSystem, d, v, a, top_speed: float, top_acceleration: float):
-        """Fields of reduced coordinates d, v, a (m, n) and the top-drive speed/acceleration."""
+        """Fields of reduced coordinates d, v, a (m, n) and the top-drive speed/acceleration.
+
+        The arrays are transposed views of members-last arrays (the kernels' layout), so the
+        forces read them without a copy.
+        """
         b = system.blocks
         axial, torsion = b['axial'], b['torsional']
         y, z = b['bending_y'], b['bending_z']
-        m = d.shape[0]
-        bit_row = axial.shapes[system.bit_node]
-        twist = np.concatenate([v[:, torsion.columns], a[:, torsion.columns]]) @ torsion.shapes_t
-        bend = np.concatenate([v[:, y.columns], a[:, y.columns]]) @ y.shapes_t
+        displacement_t = np.empty((system.n_dofs, d.shape[0]))
+        for block in b.values():
+            np.matmul(block.shapes, d[:, block.columns].T, out=displacement_t[block.rows])
+        theta_x_rate_t = torsion.shapes @ v[:, torsion.columns].T
+        theta_x_rate_t += top_speed
+        theta_x_acceleration_t = torsion.shapes @ a[:, torsion.columns].T
+        theta_x_acceleration_t += top_acceleration
         return cls(
-            displacement=system.physical(d),
-            theta_x_rate=twist[:m] + top_speed,
-            theta_x_acceleration=twist[m:] + top_acceleration,
-            bending_y_rate=bend[:m],
-            bending_y_acceleration=bend[m:],
-            bending_z_rate=v[:, z.columns] @ z.shapes_t,
-            bit_axial_rate=v[:, axial.columns] @ bit_row)
+            displacement=displacement_t.T,
+            theta_x_rate=theta_x_rate_t.T,
+            theta_x_acceleration=theta_x_acceleration_t.T,
+            bending_y_rate=(y.shapes @ v[:, y.columns].T).T,
+            bending_y_acceleration=(y.shapes @ a[:, y.columns].T).T,
+            bending_z_rate=(z.shapes @ v[:, z.columns].T).T,
+            bit_axial_rate=v[:, axial.columns] @ axial.shapes[system.bit_node])
+
+
+def members_last(array: np.ndarray, buffer: np.ndarray) -> np.ndarray:
+    """``array`` (m, k) as a C-contiguous (k, m) array: its transpose when that is one (no
+    copy), else a copy into ``buffer``."""
+    transposed = array.T
+    if transposed.flags.c_contiguous and transposed.dtype == np.float64:
+        return transposed
+    np.copyto(buffer, transposed)
+    return buffer
 
 
 @dataclass(frozen=True)
@@ -75,6 +100,31 @@ class ForceEvaluation:
     contact_tangent: np.ndarray | None
 
 
+class Workspace:
+    """Work arrays of the force kernels for a batch of m members (allocated once).
+
+    displacement_t: (n_dofs, m); theta_x_rate_t, theta_x_acceleration_t: (n_nodes, m);
+    bending_y_rate_t, bending_y_acceleration_t, bending_z_rate_t: (2 n_nodes, m) (used only
+    when the kinematics are not laid out members last already); strain, linear, stress:
+    (8, m); coupling: (9, m); tangent: (m, n_nodes, 2, 2).
+    """
+
+    def __init__(self, system: ReducedSystem, members: int):
+        n_dofs, nodes = system.n_dofs, system.n_nodes
+        self.members = members
+        self.displacement_t = np.empty((n_dofs, members))
+        self.theta_x_rate_t = np.empty((nodes, members))
+        self.theta_x_acceleration_t = np.empty((nodes, members))
+        self.bending_y_rate_t = np.empty((2 * nodes, members))
+        self.bending_y_acceleration_t = np.empty((2 * nodes, members))
+        self.bending_z_rate_t = np.empty((2 * nodes, members))
+        self.strain = np.empty((se.N_STRAINS, members))
+        self.linear = np.empty((se.N_STRAINS, members))
+        self.stress = np.empty((se.N_STRAINS, members))
+        self.coupling = np.empty((9, members))
+        self.tangent = np.empty((members, nodes, 2, 2))
+
+
 class NonlinearForces:
     """f_ke + f_se + f_ip + f_br of Eq. 31 (g(t) is handled by the integrator)."""
 
@@ -87,38 +137,70 @@ class NonlinearForces:
         self.static_weight_on_bit_n = system.model.prestress.static_weight_on_bit_n
         self.bit_axial_index = system.field(0).start + system.bit_node
         self.bit_torsion_index = system.field(1).start + system.bit_node
+        self.strain_operators = StrainOperators.of(system)
+        self.coupling_operators = CouplingOperators.of(system)
+        self.clearance_m = np.ascontiguousarray(system.clearance_m, dtype=float)
+        self.outer_radius_m = np.ascontiguousarray(system.node_outer_radius_m, dtype=float)
+        self._workspace = None
+
+    def workspace(self, members: int) -> Workspace:
+        """The work arrays for a batch of ``members`` (made again only when m changes)."""
+        if self._workspace is None or self._workspace.members != members:
+            self._workspace = Workspace(self.system, members)
+        return self._workspace
 
     def evaluate(self, fields: Kinematics, germ=None) -> ForceEvaluation:
-        """f_NL for the fields of a batch; ``germ`` (m, 2, 2) randomises the bit-rock law."""
+        """f_NL for the fields of a batch; ``germ`` (m, 2, 2) randomises the bit-rock law.
+
+        The arrays of the result are new (the integrator keeps results across iterations);
+        ``full`` and ``modal`` are transposed views of members-last arrays.
+        """
         system, physics = self.system, self.physics
         m = fields.displacement.shape[0]
-        force = np.zeros_like(fields.displacement)
+        work = self.workspace(m)
+        force_t = np.zeros((system.n_dofs, m))
+        displacement_t = members_last(fields.displacement, work.displacement_t)
+        theta_x_rate_t = members_last(fields.theta_x_rate, work.theta_x_rate_t)
         if physics.finite_strain:
-            force += finite_strain_force(system, fields.displacement)
+            accumulate_finite_strain(displacement_t, *self.strain_operators.arguments(),
+                                     work.strain, work.linear, work.stress, force_t)
         if physics.kinetic_coupling:
-            force += kinetic_coupling_force(system, fields)
+            accumulate_kinetic_coupling(
+                displacement_t, theta_x_rate_t,
+                members_last(fields.theta_x_acceleration, work.theta_x_acceleration_t),
+                members_last(fields.bending_y_rate, work.bending_y_rate_t),
+                members_last(fields.bending_y_acceleration, work.bending_y_acceleration_t),
+                members_last(fields.bending_z_rate, work.bending_z_rate_t),
+                *self.coupling_operators.arguments(), work.coupling, force_t)
+        radial = np.zeros((m, system.n_nodes))
+        in_contact = np.zeros((m, system.n_nodes), dtype=bool)
         tangent = None
         if physics.contact:
-            wall, contact, tangent = contact_force(
-                system, self.borehole.contact_stiffness_n_per_m,
-                self.borehole.friction_coefficient,
-                self.borehole.friction_regularization_rad_per_s, fields)
-            force += wall
-        else:
-            shape = (m, system.n_nodes)
-            contact = ContactForces(np.zeros(shape), np.zeros(shape, dtype=bool))
+            borehole = self.borehole
+            touching = accumulate_contact(
+                displacement_t, theta_x_rate_t, system.n_nodes, self.clearance_m,
+                self.outer_radius_m, float(borehole.contact_stiffness_n_per_m),
+                float(borehole.friction_coefficient),
+                float(borehole.friction_regularization_rad_per_s), force_t, radial, in_contact,
+                work.tangent)
+            if touching:
+                tangent = work.tangent.copy()
         rop = fields.bit_axial_rate
         omega = fields.theta_x_rate[:, system.bit_node]
         if physics.bit_rock:
             wob, tob, lifted, jacobian = self.law.forces_and_jacobian(rop, omega, germ)
-            force[:, self.bit_axial_index] += wob - self.static_weight_on_bit_n
-            force[:, self.bit_torsion_index] += tob
+            force_t[self.bit_axial_index] += wob - self.static_weight_on_bit_n
+            force_t[self.bit_torsion_index] += tob
         else:
             wob = np.full(m, self.static_weight_on_bit_n)
             tob = np.zeros(m)
             lifted = np.zeros(m, dtype=bool)
             jacobian = np.zeros((m, 2, 2))
-        return ForceEvaluation(full=force, modal=system.project(force), weight_on_bit_n=wob,
+        modal_t = np.empty((system.size, m))
+        for block in system.blocks.values():                  # Phi^T f, block by block
+            np.matmul(block.shapes_t, force_t[block.rows], out=modal_t[block.columns])
+        return ForceEvaluation(full=force_t.T, modal=modal_t.T, weight_on_bit_n=wob,
                                torque_on_bit_nm=tob, rop_m_per_s=rop, bit_speed_rad_per_s=omega,
-                               lifted=lifted, bit_jacobian=jacobian, contact=contact,
+                               lifted=lifted, bit_jacobian=jacobian,
+                               contact=ContactForces(radial, in_contact),
                                contact_tangent=tangent)

@@ -13,34 +13,168 @@ right-hand side:
 These are MODEL.md's expressions with the opposite sign: with theta_y = -w', theta_z = v' and a
 right-handed spin, the printed sign would stiffen backward whirl instead of forward whirl
 (docs/MODEL-CHOICES.md; test_kinetic_coupling.py checks a spinning disk).
+
+The kernel runs Gauss point by Gauss point with the members of the batch as the inner (vector)
+axis: each point interpolates its rotations and their rates from its element's nodes (two or
+four non-zeros of the dense interpolation rows) and scatters its forces straight back.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
+from drill_twin.dynamics.compiled import VECTOR_BATCH, inline, kernel
 
-def kinetic_coupling_force(system, fields):
+
+def _compressed_rows(dense: np.ndarray):
+    """(pointer, column, value) of the non-zeros of a dense (P, k) matrix, row by row."""
+    row, column = np.nonzero(dense)
+    pointer = np.searchsorted(row, np.arange(dense.shape[0] + 1))
+    return (pointer.astype(np.int64), column.astype(np.int64),
+            np.ascontiguousarray(dense[row, column], dtype=float))
+
+
+@dataclass(frozen=True)
+class CouplingOperators:
+    """The kinetic-coupling data of a reduced system, in the kernel's layout.
+
+    theta_x, theta_y, theta_z: (pointer, column, value) rows giving each rotation at the P
+    Gauss points from the torsional field, the bending_z block (w, theta_y) and the
+    bending_y block (v, theta_z); torsion_row, bending_y_row, bending_z_row: first field-wise
+    DOF of each; scale: rho I_p times the Gauss weight (kg m^2), (P,).
+    """
+
+    theta_x: tuple
+    theta_y: tuple
+    theta_z: tuple
+    torsion_row: int
+    bending_y_row: int
+    bending_z_row: int
+    scale: np.ndarray
+
+    @classmethod
+    def of(cls, system) -> 'CouplingOperators':
+        b = system.blocks
+        return cls(theta_x=_compressed_rows(system.theta_x_gauss),
+                   theta_y=_compressed_rows(system.theta_y_gauss),
+                   theta_z=_compressed_rows(system.theta_z_gauss),
+                   torsion_row=b['torsional'].rows.start, bending_y_row=b['bending_y'].rows.start,
+                   bending_z_row=b['bending_z'].rows.start,
+                   scale=np.ascontiguousarray(system.polar_inertia_density
+                                              * system.gauss_weight_m, dtype=float))
+
+    def arguments(self) -> tuple:
+        """The kernel's operator arguments, in its order."""
+        return (*self.theta_x, *self.theta_y, *self.theta_z, self.torsion_row,
+                self.bending_y_row, self.bending_z_row, self.scale)
+
+
+@inline
+def _point_forces(scale, rate_x, acc_x, rate_z, acc_z, theta_y, rate_y):
+    """Forces on (theta_x, theta_y, theta_z) of a Gauss point of weight rho I_p w (module
+    docstring)."""
+    return (scale * (rate_y * rate_z + theta_y * acc_z), -scale * rate_x * rate_z,
+            scale * (acc_x * theta_y + rate_x * rate_y))
+
+
+@kernel
+def accumulate_kinetic_coupling(displacement_t, theta_x_rate_t, theta_x_acceleration_t,
+                                bending_y_rate_t, bending_y_acceleration_t, bending_z_rate_t,
+                                x_pointer, x_column, x_value, y_pointer, y_column, y_value,
+                                z_pointer, z_column, z_value, torsion_row, bending_y_row,
+                                bending_z_row, scale, work, force_t):
+    """force_t += f_ke, members last: displacement_t and force_t (n_dofs, m); theta_x rates
+    and accelerations (n_nodes, m); bending rates and accelerations (2 n_nodes, m);
+    work: (9, m). Small batches run member by member."""
+    members = displacement_t.shape[1]
+    if members < VECTOR_BATCH:
+        for i in range(members):
+            for p in range(scale.shape[0]):
+                rate_x = acc_x = rate_z = acc_z = theta_y = rate_y = 0.0
+                for j in range(x_pointer[p], x_pointer[p + 1]):
+                    rate_x += x_value[j] * theta_x_rate_t[x_column[j], i]
+                    acc_x += x_value[j] * theta_x_acceleration_t[x_column[j], i]
+                for j in range(z_pointer[p], z_pointer[p + 1]):
+                    rate_z += z_value[j] * bending_y_rate_t[z_column[j], i]
+                    acc_z += z_value[j] * bending_y_acceleration_t[z_column[j], i]
+                for j in range(y_pointer[p], y_pointer[p + 1]):
+                    theta_y += y_value[j] * displacement_t[bending_z_row + y_column[j], i]
+                    rate_y += y_value[j] * bending_z_rate_t[y_column[j], i]
+                fx, fy, fz = _point_forces(scale[p], rate_x, acc_x, rate_z, acc_z, theta_y,
+                                           rate_y)
+                for j in range(x_pointer[p], x_pointer[p + 1]):
+                    force_t[torsion_row + x_column[j], i] += x_value[j] * fx
+                for j in range(y_pointer[p], y_pointer[p + 1]):
+                    force_t[bending_z_row + y_column[j], i] += y_value[j] * fy
+                for j in range(z_pointer[p], z_pointer[p + 1]):
+                    force_t[bending_y_row + z_column[j], i] += z_value[j] * fz
+        return
+    rate_x, acc_x, rate_z, acc_z, theta_y, rate_y = (work[0], work[1], work[2], work[3],
+                                                     work[4], work[5])
+    force_x, force_y, force_z = work[6], work[7], work[8]
+    for p in range(scale.shape[0]):
+        for i in range(members):
+            rate_x[i] = 0.0
+            acc_x[i] = 0.0
+            rate_z[i] = 0.0
+            acc_z[i] = 0.0
+            theta_y[i] = 0.0
+            rate_y[i] = 0.0
+        for j in range(x_pointer[p], x_pointer[p + 1]):
+            column, value = x_column[j], x_value[j]
+            for i in range(members):
+                rate_x[i] += value * theta_x_rate_t[column, i]
+                acc_x[i] += value * theta_x_acceleration_t[column, i]
+        for j in range(z_pointer[p], z_pointer[p + 1]):
+            column, value = z_column[j], z_value[j]
+            for i in range(members):
+                rate_z[i] += value * bending_y_rate_t[column, i]
+                acc_z[i] += value * bending_y_acceleration_t[column, i]
+        for j in range(y_pointer[p], y_pointer[p + 1]):
+            column, value = y_column[j], y_value[j]
+            for i in range(members):
+                theta_y[i] += value * displacement_t[bending_z_row + column, i]
+                rate_y[i] += value * bending_z_rate_t[column, i]
+        s = scale[p]
+        for i in range(members):
+            force_x[i], force_y[i], force_z[i] = _point_forces(s, rate_x[i], acc_x[i],
+                                                               rate_z[i], acc_z[i], theta_y[i],
+                                                               rate_y[i])
+        for j in range(x_pointer[p], x_pointer[p + 1]):
+            column, value = torsion_row + x_column[j], x_value[j]
+            for i in range(members):
+                force_t[column, i] += value * force_x[i]
+        for j in range(y_pointer[p], y_pointer[p + 1]):
+            column, value = bending_z_row + y_column[j], y_value[j]
+            for i in range(members):
+                force_t[column, i] += value * force_y[i]
+        for j in range(z_pointer[p], z_pointer[p + 1]):
+            column, value = bending_y_row + z_column[j], z_value[j]
+            for i in range(members):
+                force_t[column, i] += value * force_z[i]
+
+
+def transposed(array) -> np.ndarray:
+    """A (m, k) array as a C-contiguous (k, m) array (the kernels' member-last layout)."""
+    return np.ascontiguousarray(np.asarray(array, dtype=float).T)
+
+
+def kinetic_coupling_force(system, fields, operators: CouplingOperators | None = None):
     """f_ke on the field-wise DOFs, shape (m, n_dofs).
 
-    fields: :class:`~drill_twin.dynamics.forces.Kinematics` of the batch.
+    fields: :class:`~drill_twin.dynamics.forces.Kinematics` of the batch; ``operators``
+    (built from ``system`` when not given) are :meth:`CouplingOperators.of` the system.
     """
-    m = fields.displacement.shape[0]
-    b = system.blocks
-    # One product per operator: the stacked inputs share it.
-    x = np.concatenate([fields.theta_x_rate, fields.theta_x_acceleration]) @ system.theta_x_gauss_t
-    z = (np.concatenate([fields.bending_y_rate, fields.bending_y_acceleration])
-         @ system.theta_z_gauss_t)
-    y = (np.concatenate([fields.displacement[:, b['bending_z'].rows], fields.bending_z_rate])
-         @ system.theta_y_gauss_t)
-    rate_x, acc_x = x[:m], x[m:]
-    rate_z, acc_z = z[:m], z[m:]
-    theta_y, rate_y = y[:m], y[m:]
-    scale = system.polar_inertia_density * system.gauss_weight_m
-    force = np.zeros_like(fields.displacement)
-    force[:, b['torsional'].rows] = (scale * (rate_y * rate_z + theta_y * acc_z)) @ system.theta_x_gauss
-    force[:, b['bending_z'].rows] = (-scale * rate_x * rate_z) @ system.theta_y_gauss
-    force[:, b['bending_y'].rows] = (scale * (acc_x * theta_y + rate_x * rate_y)) @ system.theta_z_gauss
-    return force
+    operators = operators or CouplingOperators.of(system)
+    displacement_t = transposed(fields.displacement)
+    force_t = np.zeros_like(displacement_t)
+    accumulate_kinetic_coupling(
+        displacement_t, transposed(fields.theta_x_rate), transposed(fields.theta_x_acceleration),
+        transposed(fields.bending_y_rate), transposed(fields.bending_y_acceleration),
+        transposed(fields.bending_z_rate), *operators.arguments(),
+        np.empty((9, displacement_t.shape[1])), force_t)
+    return np.ascontiguousarray(force_t.T)
 
 
 def kinetic_coupling_energy(system, fields):

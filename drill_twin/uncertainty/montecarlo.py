@@ -5,6 +5,12 @@ j of a study with seed s gets the germ drawn from its own stream (seed, j). A ch
 the same way whichever process or machine runs it, so a study gives identical results for any
 number of workers and on a Dask cluster.
 
+The mean model rides in the first chunk as one more member, with the germ [G] = I: the random
+law then equals the mean law exactly (its deviation terms vanish), and a member costs a
+batch far less than a run of its own, which used to hold one worker for a large share of a
+small study while the other waited. Like any batch neighbour, it changes the realizations only
+by rounding.
+
 Each chunk returns, per realization: the stationary-window series of ROP, bit speed, WOB,
 TOB and the radial displacement at the study's station; the time integral of ||U||^2 over
 the whole run (U the full DOF vector from the prestressed state, with the driven rotation:
@@ -28,6 +34,24 @@ from drill_twin.uncertainty.germ import germs_for_realizations, validate_dispers
 
 QUANTITIES = ('rop_m_per_s', 'bit_speed_rad_per_s', 'weight_on_bit_n', 'torque_on_bit_nm',
               'radial_displacement_m')
+MEAN_MODEL_GERM = np.eye(2)
+"""The germ that makes the random bit-rock law the mean law (Eq. 50 with [G_b] = I)."""
+LARGEST_BATCH = 64
+"""Cap of the default batch size: a step's fixed cost is shared by the members of a batch
+(measured: 64 members integrate about twice as many member-seconds per CPU second as 16)."""
+
+
+def default_batch_size(samples: int, workers: int) -> int:
+    """Chunks of equal size, a multiple of ``workers`` of them, none above LARGEST_BATCH.
+
+    Every worker then gets the same work (the first chunk's extra member, the mean model,
+    costs a fraction of a member). The results depend on the batch size only by rounding;
+    summary.json records it, and ``--batch-size`` repeats a study bit for bit.
+    """
+    workers = max(1, int(workers))
+    chunks = max(1, -(-samples // LARGEST_BATCH))
+    chunks = workers * -(-chunks // workers)
+    return max(1, -(-samples // chunks))
 
 
 @dataclass(frozen=True)
@@ -69,7 +93,8 @@ class ChunkResult:
     norm_integral: integral of ||U||^2 dt over the run, (k,); impacts, lift_offs: counted
     over the run, (k,); impacts_in_window, lift_offs_in_window: (k,); failed: index ->
     (time_s, message) of realizations that diverged (not in the arrays); steps, wall_s;
-    mean_model: True for the run of the mean law (no germ).
+    mean_model: quantity -> (n_w,) window series of the mean model in the chunk that carried
+    it, else None.
     """
 
     indices: np.ndarray
@@ -83,7 +108,7 @@ class ChunkResult:
     failed: dict = field(default_factory=dict)
     steps: int = 0
     wall_s: float = 0.0
-    mean_model: bool = False
+    mean_model: dict | None = None
 
 
 @functools.lru_cache(maxsize=4)
@@ -96,27 +121,33 @@ def _system_for(config_json: str):
 
 def run_chunk(config_json: str, spec: StudySpec, indices: tuple[int, ...],
               mean_model: bool = False) -> ChunkResult:
-    """Integrate the realizations ``indices`` (or the mean model) for the study's duration.
+    """Integrate the realizations ``indices`` (and the mean model as one more member when
+    ``mean_model``) for the study's duration.
 
     ``config_json`` is the configuration as a JSON mapping (it travels to other processes).
-    Realizations that diverge are reported in ``failed`` and the chunk is rerun without them.
+    Realizations that diverge are reported in ``failed`` and the chunk is rerun without them;
+    a diverging mean model stops the study.
     """
     config, system = _system_for(config_json)
-    germs = None if mean_model else germs_for_realizations(spec.dispersion, spec.seed, indices)
+    germs = germs_for_realizations(spec.dispersion, spec.seed, indices)
+    if mean_model:
+        germs = np.concatenate([MEAN_MODEL_GERM[None], germs])
+    if germs.shape[0] == 0:
+        return _empty(config, spec)
+    leading = 1 if mean_model else 0                      # batch position of indices[0]
     with threadpool_limits(limits=1, user_api='blas'):
         try:
-            result = _integrate(config, system, spec, np.array(indices), germs)
-            result.mean_model = mean_model
-            return result
+            result = _integrate(config, system, spec, np.array(indices, dtype=int), germs,
+                                leading)
         except SimulationDiverged as error:
-            if mean_model or not error.members:
+            bad_members = [m for m in error.members if m >= leading]
+            if (mean_model and 0 in error.members) or not bad_members:
                 raise
-            bad = {indices[m]: (error.time_s, str(error)) for m in error.members}
+            bad = {indices[m - leading]: (error.time_s, str(error)) for m in bad_members}
             rest = tuple(i for i in indices if i not in bad)
-            result = (run_chunk(config_json, spec, rest) if rest else
-                      _empty(config, spec))
+            result = run_chunk(config_json, spec, rest, mean_model)
             result.failed.update(bad)
-            return result
+        return result
 
 
 def _station_index(system, station_m: float) -> int:
@@ -144,8 +175,10 @@ def _empty(config, spec) -> ChunkResult:
                        np.zeros(0, int), np.zeros(0, int), np.zeros(0, int), np.zeros(0, int))
 
 
-def _integrate(config, system, spec: StudySpec, indices, germs) -> ChunkResult:
-    members = indices.size
+def _integrate(config, system, spec: StudySpec, indices, germs, leading: int) -> ChunkResult:
+    """Integrate the batch of ``germs``; members ``leading:`` are the realizations
+    ``indices`` (member 0 is the mean model when ``leading`` is 1)."""
+    members = germs.shape[0]
     simulator = Simulator(config, members=members, germs=germs, system=system)
     station = _station_index(system, spec.station_m)
     rows = system.stations[station].rows
@@ -182,9 +215,14 @@ def _integrate(config, system, spec: StudySpec, indices, germs) -> ChunkResult:
             if impacts_at_window is None:
                 impacts_at_window = simulator.impact_count.copy()
                 lift_offs_at_window = simulator.lift_off_count.copy()
+    realizations = slice(leading, None)
     return ChunkResult(
-        indices=indices, time_s=time_s, series=series, norm_integral=norm_integral,
-        impacts=simulator.impact_count.copy(), lift_offs=simulator.lift_off_count.copy(),
-        impacts_in_window=simulator.impact_count - impacts_at_window,
-        lift_offs_in_window=simulator.lift_off_count - lift_offs_at_window,
-        steps=steps, wall_s=time.perf_counter() - start)
+        indices=indices, time_s=time_s,
+        series={q: values[realizations] for q, values in series.items()},
+        norm_integral=norm_integral[realizations],
+        impacts=simulator.impact_count[realizations].copy(),
+        lift_offs=simulator.lift_off_count[realizations].copy(),
+        impacts_in_window=(simulator.impact_count - impacts_at_window)[realizations],
+        lift_offs_in_window=(simulator.lift_off_count - lift_offs_at_window)[realizations],
+        steps=steps, wall_s=time.perf_counter() - start,
+        mean_model={q: values[0].copy() for q, values in series.items()} if leading else None)

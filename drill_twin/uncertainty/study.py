@@ -86,21 +86,23 @@ def run_study(config: DrillStringConfig, spec: StudySpec, executor,
               progress: Callable[[int, int], None] | None = None) -> StudyResult:
     """Run the mean model and every chunk of ``spec`` on ``executor``.
 
-    progress(done, total) counts runs: the mean model and the realizations.
+    progress(done, total) counts runs: the mean model and the realizations. The mean model is
+    integrated with the first chunk (montecarlo module docstring).
     """
     config_json = json.dumps(config_to_dict(config))
     start = time.perf_counter()
-    arguments = [(config_json, spec, (0,), True)] + [(config_json, spec, chunk)
-                                                     for chunk in spec.chunks()]
+    chunks = spec.chunks()
+    arguments = [(config_json, spec, chunks[0], True)] + [(config_json, spec, chunk)
+                                                          for chunk in chunks[1:]]
     results, done = [], 0
     for result in executor.run(run_chunk, arguments):
         results.append(result)
-        done += 1 if result.mean_model else result.indices.size + len(result.failed)
+        done += (result.indices.size + len(result.failed)
+                 + (result.mean_model is not None))
         if progress is not None:
             progress(done, spec.samples + 1)
-    mean = next(r for r in results if r.mean_model)
-    chunks = [r for r in results if not r.mean_model]
-    return _gather(config, spec, mean, chunks, time.perf_counter() - start,
+    mean = next(r for r in results if r.mean_model is not None)
+    return _gather(config, spec, mean, results, time.perf_counter() - start,
                    getattr(executor, 'workers', 1))
 
 
@@ -118,7 +120,7 @@ def _gather(config, spec, mean: ChunkResult, chunks: list[ChunkResult], wall_s, 
         spec=spec, config=config, time_s=mean.time_s, indices=indices[order],
         realizations={q: np.concatenate([c.series[q] for c in chunks])[order]
                       for q in QUANTITIES},
-        mean_model={q: mean.series[q][0] for q in QUANTITIES},
+        mean_model={q: mean.mean_model[q] for q in QUANTITIES},
         norm_integral=stack(lambda c: c.norm_integral), impacts=stack(lambda c: c.impacts),
         lift_offs=stack(lambda c: c.lift_offs),
         impacts_in_window=stack(lambda c: c.impacts_in_window),

@@ -1,0 +1,152 @@
+"""The speed of the time loop on this machine, with the dense-product rate measured alongside.
+
+    python benchmarks/run_all.py [--seconds S] [--members 1 16 64 256] [--simulate S]
+
+For the default (paper-fidelity) model and each batch size m it prints: the real-time factor
+(simulated seconds per wall second), member-seconds per wall second (m x RTF), force
+evaluations per step, the rate of a dense 342 x 166 x m float64 product measured just before
+and after that batch (GFLOP/s, single-threaded BLAS like the time loop) and the fraction of
+that matrix-product limit the batch reaches: the time its dense products would take at that
+rate over the time its steps took. The dense products of one force evaluation are the ones
+the loop does (block by block): u = Phi q and the rates and accelerations the forces need,
+Phi^T f, and the Newmark residual's C_r v and S0^-1 r (2 m flops per multiply-add). Last, the
+RTF that ``drill-twin simulate`` reports (its own loop, recording included), run as a command.
+
+On a shared machine the absolute figures move with the load; the matrix rate measured in the
+same run and the fractions say how much. The CPU-time columns (this process's CPU seconds,
+``time.process_time``) move much less than the wall-clock ones when other processes compete
+for the cores; the fraction of the matrix-product limit is taken on CPU time, like the
+best-of timing of the product.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import re
+import subprocess
+import sys
+import tempfile
+import time
+from datetime import datetime, timezone
+
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+from drill_twin.config import load_config
+from drill_twin.dynamics.reduced_system import build_reduced_system
+from drill_twin.dynamics.simulator import Simulator
+from drill_twin.modal.reduced_basis import modal_analysis
+
+MATRIX_ROWS, MATRIX_COLUMNS = 342, 166
+"""The dense product of the issue's yardstick: the paper model's field-wise DOFs by its
+reduced coordinates."""
+
+
+def matrix_rate(members: int, seconds: float = 0.3) -> float:
+    """GFLOP/s of a (342 x 166) by (166 x members) float64 product, best of repeated runs."""
+    rng = np.random.default_rng(0)
+    a = rng.normal(size=(MATRIX_ROWS, MATRIX_COLUMNS))
+    b = rng.normal(size=(MATRIX_COLUMNS, members))
+    out = np.empty((MATRIX_ROWS, members))
+    np.matmul(a, b, out=out)
+    repeats = max(1, int(2e7 / (MATRIX_ROWS * MATRIX_COLUMNS * members)))
+    best = np.inf
+    deadline = time.perf_counter() + seconds
+    while time.perf_counter() < deadline:
+        start = time.perf_counter()
+        for _ in range(repeats):
+            np.matmul(a, b, out=out)
+        best = min(best, (time.perf_counter() - start) / repeats)
+    return 2.0 * MATRIX_ROWS * MATRIX_COLUMNS * members / best / 1e9
+
+
+def dense_flops_per_evaluation(system) -> float:
+    """Flops of the dense products of one force evaluation, per member (module docstring)."""
+    b = system.blocks
+    blocks = sum(block.shapes.size for block in b.values())      # Phi q or Phi^T f
+    rates = (2 * b['torsional'].shapes.size + 2 * b['bending_y'].shapes.size
+             + b['bending_z'].shapes.size + b['axial'].shapes.shape[1])
+    newmark = 2 * system.size ** 2
+    return 2.0 * (2 * blocks + rates + newmark)
+
+
+def measure_batch(config, system, members: int, seconds: float) -> dict:
+    simulator = Simulator(config, members=members, system=system)
+    for _ in range(20):                                   # warm-up (and the kernels' load)
+        simulator.step()
+    steps = max(20, int(round(seconds / simulator.dt)))
+    counters = simulator.integrator.counters
+    evaluations = counters.force_evaluations
+    rate_before = matrix_rate(members)
+    start, cpu = time.perf_counter(), time.process_time()
+    for _ in range(steps):
+        simulator.step()
+    wall, cpu = time.perf_counter() - start, time.process_time() - cpu
+    rate_after = matrix_rate(members)
+    per_step = (counters.force_evaluations - evaluations) / steps
+    rate = 0.5 * (rate_before + rate_after)
+    limit = dense_flops_per_evaluation(system) * members * per_step * steps / (rate * 1e9)
+    simulated = steps * simulator.dt
+    return {'members': members, 'rtf': simulated / wall, 'member_rtf': members * simulated / wall,
+            'cpu_rtf': simulated / cpu, 'member_cpu_rtf': members * simulated / cpu,
+            'evaluations_per_step': per_step, 'gflops': rate, 'fraction': limit / cpu,
+            'cpu_share': cpu / wall, 'step_cpu_ms': 1e3 * cpu / steps}
+
+
+def simulate_command(seconds: float) -> tuple[float, float, float]:
+    """(RTF printed by ``drill-twin simulate --duration seconds``, wall time and CPU time of
+    the command)."""
+    with tempfile.TemporaryDirectory() as folder:
+        start, cpu = time.perf_counter(), os.times()
+        out = subprocess.run([sys.executable, '-m', 'drill_twin.cli.main', 'simulate',
+                              '--duration', str(seconds), '--out',
+                              os.path.join(folder, 'run.npz')],
+                             capture_output=True, text=True, check=True)
+        wall, end = time.perf_counter() - start, os.times()
+    match = re.search(r'real-time factor ([0-9.]+)', out.stdout)
+    child_cpu = (end.children_user - cpu.children_user) + (end.children_system
+                                                            - cpu.children_system)
+    return float(match.group(1)), wall, child_cpu
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--seconds', type=float, default=5.0,
+                        help='simulated seconds per batch size (default 5)')
+    parser.add_argument('--members', type=int, nargs='+', default=[1, 16, 64, 256])
+    parser.add_argument('--simulate', type=float, default=20.0, metavar='S',
+                        help='duration of the drill-twin simulate run (0: skip; default 20)')
+    args = parser.parse_args()
+    config = load_config()
+    print(f'{datetime.now(timezone.utc):%Y-%m-%d %H:%M} UTC, {platform.node()}, '
+          f'{platform.processor() or platform.machine()}, {os.cpu_count()} cores, '
+          f'load average {os.getloadavg()[0]:.2f}')
+    with threadpool_limits(limits=1, user_api='blas'):
+        model, _, basis = modal_analysis(config)
+        system = build_reduced_system(model, basis)
+        print(f'paper model: {system.n_dofs} field-wise DOFs, {system.size} reduced '
+              f'coordinates, time step {1e3 * config.integration.time_step_s:g} ms; '
+              f'{dense_flops_per_evaluation(system) / 1e3:.0f} kflop of dense products per '
+              f'member and force evaluation')
+        print('RTF and member-seconds per second of wall-clock time / of CPU time; step: CPU '
+              'time per step')
+        print(f'{"members":>7} {"RTF wall":>9} {"RTF cpu":>8} {"member-s/s wall":>16} '
+              f'{"member-s/s cpu":>15} {"step ms":>8} {"evals/step":>10} {"matmul GF/s":>12} '
+              f'{"of limit":>9} {"cpu/wall":>9}')
+        for members in args.members:
+            r = measure_batch(config, system, members, args.seconds)
+            print(f'{members:>7} {r["rtf"]:>9.2f} {r["cpu_rtf"]:>8.2f} {r["member_rtf"]:>16.1f} '
+                  f'{r["member_cpu_rtf"]:>15.1f} {r["step_cpu_ms"]:>8.3f} '
+                  f'{r["evaluations_per_step"]:>10.2f} {r["gflops"]:>12.1f} '
+                  f'{100 * r["fraction"]:>8.1f}% {r["cpu_share"]:>9.2f}', flush=True)
+    if args.simulate > 0:
+        rtf, wall, cpu = simulate_command(args.simulate)
+        print(f'drill-twin simulate --duration {args.simulate:g}: real-time factor {rtf:.2f} '
+              f'(its loop, wall clock); the command took {wall:.1f} s wall, {cpu:.1f} s CPU '
+              f'(start-up included)')
+    print(f'load average at the end {os.getloadavg()[0]:.2f}')
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,91 @@
+"""The one way the time loop's kernels are compiled: numba, nopython, cached on disk.
+
+Every kernel of the loop is decorated with :func:`kernel` (helpers compiled into the
+kernels that call them with :func:`inline`). Compiled code is kept on disk, so only the first
+start after a change of the kernels' source pays the compilation (several seconds); later
+starts load it in milliseconds.
+
+Where. numba checks a cached kernel against its own source file only, not against the
+kernels it calls from other modules. The cache therefore lives in a folder named after a
+hash of every kernel-defining module of this package (``kernels-<hash>``): editing any of
+them starts a fresh cache. The folder is made under the first writable of: ``NUMBA_CACHE_DIR``,
+``__pycache__`` beside this file, the user's cache folder (``$XDG_CACHE_HOME`` or
+``~/.cache``)/drill_twin, the system's temporary folder; with none writable the kernels are
+compiled at every start (with a warning).
+
+Kernels run on one thread (the batch is the vector axis) and use numpy's error model:
+a division by zero gives inf or nan as in numpy, never an exception, so a diverging member
+is caught by the integrator's finiteness checks exactly as before. No fastmath: results keep
+numpy's rounding rules and nan/inf propagate.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import tempfile
+import warnings
+from pathlib import Path
+
+import numba
+
+OPTIONS = dict(nogil=True, error_model='numpy')
+"""Compilation options shared by every kernel."""
+VECTOR_BATCH = 4
+"""From this batch size on, kernels loop over the members innermost (the vector axis); below
+it, member by member (a loop over one member costs more in set-up than it computes)."""
+_MARKERS = (b'@kernel', b'@inline')
+
+
+def _source_hash() -> str:
+    """Hash of this module and of every module beside it that defines kernels."""
+    digest = hashlib.sha256()
+    for path in sorted(Path(__file__).parent.glob('*.py')):
+        text = path.read_bytes()
+        if path.name == Path(__file__).name or any(marker in text for marker in _MARKERS):
+            digest.update(path.name.encode() + b'\0' + text)
+    return digest.hexdigest()[:16]
+
+
+def _writable(directory: Path) -> bool:
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=directory).close()
+        return True
+    except OSError:
+        return False
+
+
+def cache_directory() -> Path | None:
+    """The kernels' cache folder (module docstring), None when nothing is writable."""
+    user_cache = Path(os.environ.get('XDG_CACHE_HOME') or Path.home() / '.cache')
+    bases = [Path(os.environ['NUMBA_CACHE_DIR'])] if os.environ.get('NUMBA_CACHE_DIR') else []
+    bases += [Path(__file__).parent / '__pycache__', user_cache / 'drill_twin',
+              Path(tempfile.gettempdir()) / f'drill_twin-{os.getuid()}']
+    name = f'kernels-{_source_hash()}'
+    for base in bases:
+        if _writable(base / name):
+            return base / name
+    return None
+
+
+_CACHE_DIRECTORY = cache_directory()
+
+
+def kernel(function):
+    """Compile ``function`` with numba.njit (nopython mode) and the on-disk cache."""
+    if _CACHE_DIRECTORY is None:
+        warnings.warn(f'drill_twin: no writable folder for the compiled kernels; '
+                      f'{function.__name__} is compiled at every start (set NUMBA_CACHE_DIR)',
+                      stacklevel=2)
+        return numba.njit(cache=False, **OPTIONS)(function)
+    saved = numba.config.CACHE_DIR
+    numba.config.CACHE_DIR = str(_CACHE_DIRECTORY)      # read when the cache is set up
+    try:
+        return numba.njit(cache=True, **OPTIONS)(function)
+    finally:
+        numba.config.CACHE_DIR = saved
+
+
+def inline(function):
+    """A helper of kernels, compiled into each kernel that calls it (not cached on its own)."""
+    return numba.njit(inline='always', **OPTIONS)(function)
