@@ -5,10 +5,11 @@ import argparse
 import sys
 
 from drill_twin import __version__
+from drill_twin.cli import map as map_command
 from drill_twin.cli import modes, montecarlo, replay, simulate, twin, view
 from drill_twin.cli.common import report_and_exit_code
 
-SUBCOMMANDS = (modes, simulate, montecarlo, twin, view, replay)
+SUBCOMMANDS = (modes, simulate, montecarlo, map_command, twin, view, replay)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,0 +1,85 @@
+"""The files of a stick-slip map (docs/MAP.md describes them).
+
+- map.csv: one row per grid point (WOB-major), the columns of
+  :data:`drill_twin.simulation.stick_slip_map.COLUMNS` in that order, with a header row.
+- linear_stability.csv: the linear stability on a fine grid over the map's range
+  (top_drive_speed_rad_per_s, weight_on_bit_n, growth_rate_per_s, frequency_hz).
+- map.json: the grid, options, seed, wall time, workers and the failed points.
+- config.yaml: the complete model configuration (``drill-twin map --config config.yaml``
+  with the same options repeats the map).
+- map.png: the heat map of the stick-slip severity (drill_twin.plotting.map_figure).
+"""
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+
+import yaml
+
+from drill_twin.config.loader import config_to_dict
+from drill_twin.simulation.stick_slip_map import COLUMNS, MapResult
+
+INTEGER_COLUMNS = ('backward_rotation', 'lift_off_count', 'impact_count', 'linearly_stable',
+                   'failed')
+
+
+def _text(name: str, value) -> str:
+    if name == 'error':
+        return str(value)
+    if name in INTEGER_COLUMNS and not (isinstance(value, float) and math.isnan(value)):
+        return str(int(value))
+    return f'{float(value):.9g}'
+
+
+def write_map(result: MapResult, directory: str | Path, figure: bool = True) -> Path:
+    """Write every file of the map into ``directory`` (created if needed)."""
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    with open(directory / 'map.csv', 'w', newline='') as stream:
+        writer = csv.writer(stream, lineterminator='\n')
+        writer.writerow(COLUMNS)
+        for row in result.rows:
+            writer.writerow([_text(name, row[name]) for name in COLUMNS])
+    with open(directory / 'linear_stability.csv', 'w', newline='') as stream:
+        writer = csv.writer(stream, lineterminator='\n')
+        writer.writerow(['top_drive_speed_rad_per_s', 'weight_on_bit_n', 'growth_rate_per_s',
+                         'frequency_hz'])
+        for i, wob in enumerate(result.boundary_weights_on_bit_n):
+            for j, speed in enumerate(result.boundary_speeds_rad_per_s):
+                writer.writerow([f'{speed:.9g}', f'{wob:.9g}',
+                                 f'{result.boundary_growth_rate_per_s[i, j]:.9g}',
+                                 f'{result.boundary_frequency_hz[i, j]:.9g}'])
+    (directory / 'map.json').write_text(json.dumps(summary(result), indent=2) + '\n')
+    (directory / 'config.yaml').write_text(
+        yaml.safe_dump(config_to_dict(result.config), sort_keys=False))
+    if figure:
+        from drill_twin.plotting.map_figure import plot_map
+        plot_map(result, directory / 'map.png')
+    return directory
+
+
+def summary(result: MapResult) -> dict:
+    """The map's parameters, timing and failures."""
+    spec = result.spec
+    points = len(result.rows)
+    return {
+        'speeds_rad_per_s': list(spec.speeds_rad_per_s),
+        'weights_on_bit_n': list(spec.weights_on_bit_n),
+        'duration_s': spec.duration_s,
+        'window_s': spec.window_s,
+        'start': spec.start,
+        'perturbation_rad_per_s': spec.perturbation_rad_per_s,
+        'seed': spec.seed,
+        'time_step_s': result.config.integration.time_step_s,
+        'points': points,
+        'failed_points': [{'top_drive_speed_rad_per_s': r['top_drive_speed_rad_per_s'],
+                           'weight_on_bit_n': r['weight_on_bit_n'],
+                           'time_s': r['failed_time_s'], 'error': r['error']}
+                          for r in result.failed_points()],
+        'workers': result.workers,
+        'wall_time_s': result.wall_s,
+        'simulated_seconds_per_wall_second':
+            points * spec.duration_s / result.wall_s if result.wall_s else None,
+    }
