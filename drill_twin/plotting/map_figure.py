@@ -3,7 +3,8 @@
 Cells are coloured by the SSI of the simulated points; the contours SSI = 0.5 and 1 separate
 no stick-slip / stick-slip / full stick (the bit stops); points where the bit turned
 backwards are marked, failed points crossed out; the dashed line is the linear stability
-boundary (growth rate 0) of steady drilling computed on a fine grid.
+boundary (growth rate 0) of steady drilling computed on a fine grid, the dotted one where the
+bit-rock law's steady ROP vanishes.
 """
 from __future__ import annotations
 
@@ -44,7 +45,7 @@ def plot_map(result: MapResult, path: str | Path) -> Path:
     failed = result.column('failed')[np.ix_(order_w, order_s)] == 1
     kn = 1e-3
 
-    figure, axes = plt.subplots(figsize=(8.0, 5.6), constrained_layout=True)
+    figure, axes = plt.subplots(figsize=(8.0, 6.4), constrained_layout=True)
     finite = ssi[np.isfinite(ssi)]
     top = max(1.2, float(finite.max())) if finite.size else 1.2
     mesh = axes.pcolormesh(_edges(speeds), _edges(weights) * kn, np.ma.masked_invalid(ssi),
@@ -55,10 +56,10 @@ def plot_map(result: MapResult, path: str | Path) -> Path:
     if speeds.size > 1 and weights.size > 1 and finite.size:
         filled = np.where(np.isfinite(ssi), ssi, 0.0)
         lines = axes.contour(speeds, weights * kn, filled, levels=[SSI_STICK_SLIP, SSI_FULL_STICK],
-                             colors=['white', 'red'], linewidths=1.6)
+                             colors=['cyan', 'red'], linewidths=1.6)
         axes.clabel(lines, fmt={SSI_STICK_SLIP: 'stick-slip', SSI_FULL_STICK: 'full stick'},
                     fontsize=8)
-        handles += [Line2D([], [], color='white', lw=1.6,
+        handles += [Line2D([], [], color='cyan', lw=1.6,
                            label=f'SSI = {SSI_STICK_SLIP:g}: stick-slip above'),
                     Line2D([], [], color='red', lw=1.6,
                            label=f'SSI = {SSI_FULL_STICK:g}: full stick above')]
@@ -69,6 +70,12 @@ def plot_map(result: MapResult, path: str | Path) -> Path:
         handles.append(Line2D([], [], color='black', ls='--', lw=1.8,
                               label='linear stability boundary (unstable on the '
                                     'velocity-weakening side)'))
+    rop = result.boundary_steady_rop_m_per_s
+    if rop.shape[0] > 1 and rop.shape[1] > 1 and np.nanmin(rop) < 0 < np.nanmax(rop):
+        axes.contour(result.boundary_speeds_rad_per_s, result.boundary_weights_on_bit_n * kn,
+                     rop, levels=[0.0], colors='0.6', linestyles=':', linewidths=1.8)
+        handles.append(Line2D([], [], color='0.6', ls=':', lw=1.8,
+                              label='steady ROP = 0 (the law does not drill below)'))
     grid_s, grid_w = np.meshgrid(speeds, weights * kn)
     axes.plot(grid_s, grid_w, '.', color='0.85', ms=3)
     if np.any(backward):
@@ -92,7 +99,8 @@ def plot_map(result: MapResult, path: str | Path) -> Path:
     axes.set_title(f'stick-slip map, mean model: last {spec.window_s:g} s of '
                    f'{spec.duration_s:g} s per point', fontsize=10)
     if handles:
-        axes.legend(handles=handles, loc='upper right', fontsize=7, framealpha=0.8)
+        figure.legend(handles=handles, loc='outside lower center', ncols=2, fontsize=7,
+                      frameon=False)
     figure.savefig(path, dpi=120)
     plt.close(figure)
     return Path(path)

@@ -44,6 +44,9 @@ SSI_STICK_SLIP = 0.5
 """SSI from which the torsional oscillation counts as stick-slip (half the mean speed)."""
 SSI_FULL_STICK = 1.0
 """SSI from which the bit stops (a symmetric swing of the bit speed reaches zero)."""
+SSI_STEADY = 0.05
+"""SSI below which a simulated point counts as steady when compared with the linear
+stability (a bit-speed swing under 5 % of the mean speed each way)."""
 STARTS = ('steady', 'configured')
 BOUNDARY_RESOLUTION = (81, 61)
 """Speeds x WOBs of the fine grid on which the linear stability boundary is drawn."""
@@ -74,6 +77,9 @@ COLUMNS = {
                          'axial-torsional model (1/s; > 0 unstable)',
     'frequency_hz': 'frequency of that eigenvalue, |imaginary part| / 2 pi (Hz)',
     'linearly_stable': '1 if the growth rate is negative',
+    'linear_comparison': 'agree / disagree (linearly stable and SSI < 0.05, or unstable and '
+                         'SSI >= 0.05), near_boundary (a grid neighbour lies on the other '
+                         'side of the linear stability boundary) or failed',
     'failed': '1 if the integration diverged (statistics NaN)',
     'failed_time_s': 'simulated time of the failed step (s; NaN if none)',
     'wall_time_s': 'wall-clock time of the point\'s integration (s)',
@@ -83,7 +89,7 @@ COLUMNS = {
 
 @dataclass(frozen=True)
 class MapSpec:
-    """What a map computes (SI units); see the module docstring."""
+    """What a map computes (SI units; speeds and WOBs are sorted); see the module docstring."""
 
     speeds_rad_per_s: tuple
     weights_on_bit_n: tuple
@@ -95,7 +101,7 @@ class MapSpec:
 
     def __post_init__(self):
         for name in ('speeds_rad_per_s', 'weights_on_bit_n'):
-            values = tuple(float(v) for v in getattr(self, name))
+            values = tuple(sorted(float(v) for v in getattr(self, name)))
             object.__setattr__(self, name, values)
             if not values:
                 raise ValueError(f'{name}: needs at least one value')
@@ -139,7 +145,9 @@ class MapResult:
 
     rows: one dict per point (keys: COLUMNS, plus 'index'); boundary_speeds_rad_per_s (n_s,),
     boundary_weights_on_bit_n (n_w,), boundary_growth_rate_per_s and
-    boundary_frequency_hz (n_w, n_s): the linear stability over the map's range.
+    boundary_frequency_hz (n_w, n_s): the linear stability over the map's range;
+    boundary_steady_rop_m_per_s (n_w, n_s): the bit-rock law's steady ROP there (<= 0: the
+    law cannot drill).
     """
 
     spec: MapSpec
@@ -149,6 +157,7 @@ class MapResult:
     boundary_weights_on_bit_n: np.ndarray
     boundary_growth_rate_per_s: np.ndarray
     boundary_frequency_hz: np.ndarray
+    boundary_steady_rop_m_per_s: np.ndarray
     wall_s: float = 0.0
     workers: int = 1
     extra: dict = field(default_factory=dict)
@@ -184,7 +193,8 @@ def run_point(config_json: str, spec: MapSpec, index: int) -> dict:
                steady_torque_on_bit_nm=steady.torque_nm,
                growth_rate_per_s=stability.growth_rate_per_s,
                frequency_hz=stability.frequency_hz,
-               linearly_stable=int(stability.stable), failed=0, error='')
+               linearly_stable=int(stability.stable), linear_comparison='', failed=0,
+               error='')
     operation = dataclasses.replace(config.operation,
                                     top_drive_speed_hz=speed / (2 * math.pi), hook_load_n=hook)
     point_config = dataclasses.replace(config, operation=operation)
@@ -285,15 +295,45 @@ def run_map(config: DrillStringConfig, spec: MapSpec, executor,
             progress(len(rows), total)
     rows.sort(key=lambda r: r['index'])
     wall = time.perf_counter() - start
+    verdicts = compare_with_linear_stability(
+        np.array([r['stick_slip_severity'] for r in rows]).reshape(spec.shape),
+        np.array([r['linearly_stable'] for r in rows], dtype=bool).reshape(spec.shape),
+        np.array([r['failed'] for r in rows], dtype=bool).reshape(spec.shape))
+    for row, verdict in zip(rows, verdicts.ravel()):
+        row['linear_comparison'] = str(verdict)
     _, system = _system_for(config_json)
+    law = BitRockLaw.from_config(config.bit_rock)
     speeds = _fine(spec.speeds_rad_per_s, BOUNDARY_RESOLUTION[0])
     weights = _fine(spec.weights_on_bit_n, BOUNDARY_RESOLUTION[1])
-    growth, frequency = stability_grid(system, BitRockLaw.from_config(config.bit_rock),
-                                       speeds, weights)
+    growth, frequency = stability_grid(system, law, speeds, weights)
+    rop = law.steady_rop(speeds[None, :], -weights[:, None])
     return MapResult(spec=spec, config=config, rows=rows, boundary_speeds_rad_per_s=speeds,
                      boundary_weights_on_bit_n=weights, boundary_growth_rate_per_s=growth,
-                     boundary_frequency_hz=frequency, wall_s=wall,
-                     workers=getattr(executor, 'workers', 1))
+                     boundary_frequency_hz=frequency, boundary_steady_rop_m_per_s=rop,
+                     wall_s=wall, workers=getattr(executor, 'workers', 1))
+
+
+def compare_with_linear_stability(severity: np.ndarray, stable: np.ndarray,
+                                  failed: np.ndarray) -> np.ndarray:
+    """Per grid point (n_wob, n_speed): 'agree' when a linearly stable point is steady
+    (SSI < SSI_STEADY) or an unstable one oscillates (SSI >= SSI_STEADY), 'disagree'
+    otherwise, 'near_boundary' when a grid neighbour (one step in speed or WOB) is on the
+    other side of the linear stability boundary, 'failed' for failed points. Arrays are on
+    the map's grid, both axes increasing (MapSpec sorts them)."""
+    out = np.empty(stable.shape, dtype=object)
+    rows, columns = stable.shape
+    for i in range(rows):
+        for j in range(columns):
+            neighbours = [stable[a, b] for a, b in ((i - 1, j), (i + 1, j), (i, j - 1), (i, j + 1))
+                          if 0 <= a < rows and 0 <= b < columns]
+            if failed[i, j]:
+                out[i, j] = 'failed'
+            elif any(n != stable[i, j] for n in neighbours):
+                out[i, j] = 'near_boundary'
+            else:
+                steady = severity[i, j] < SSI_STEADY
+                out[i, j] = 'agree' if steady == bool(stable[i, j]) else 'disagree'
+    return out
 
 
 def _fine(values, count: int) -> np.ndarray:

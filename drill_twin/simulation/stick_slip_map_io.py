@@ -3,7 +3,8 @@
 - map.csv: one row per grid point (WOB-major), the columns of
   :data:`drill_twin.simulation.stick_slip_map.COLUMNS` in that order, with a header row.
 - linear_stability.csv: the linear stability on a fine grid over the map's range
-  (top_drive_speed_rad_per_s, weight_on_bit_n, growth_rate_per_s, frequency_hz).
+  (top_drive_speed_rad_per_s, weight_on_bit_n, growth_rate_per_s, frequency_hz,
+  steady_rop_m_per_s).
 - map.json: the grid, options, seed, wall time, workers and the failed points.
 - config.yaml: the complete model configuration (``drill-twin map --config config.yaml``
   with the same options repeats the map).
@@ -21,12 +22,13 @@ import yaml
 from drill_twin.config.loader import config_to_dict
 from drill_twin.simulation.stick_slip_map import COLUMNS, MapResult
 
+TEXT_COLUMNS = ('linear_comparison', 'error')
 INTEGER_COLUMNS = ('backward_rotation', 'lift_off_count', 'impact_count', 'linearly_stable',
                    'failed')
 
 
 def _text(name: str, value) -> str:
-    if name == 'error':
+    if name in TEXT_COLUMNS:
         return str(value)
     if name in INTEGER_COLUMNS and not (isinstance(value, float) and math.isnan(value)):
         return str(int(value))
@@ -45,12 +47,13 @@ def write_map(result: MapResult, directory: str | Path, figure: bool = True) -> 
     with open(directory / 'linear_stability.csv', 'w', newline='') as stream:
         writer = csv.writer(stream, lineterminator='\n')
         writer.writerow(['top_drive_speed_rad_per_s', 'weight_on_bit_n', 'growth_rate_per_s',
-                         'frequency_hz'])
+                         'frequency_hz', 'steady_rop_m_per_s'])
         for i, wob in enumerate(result.boundary_weights_on_bit_n):
             for j, speed in enumerate(result.boundary_speeds_rad_per_s):
                 writer.writerow([f'{speed:.9g}', f'{wob:.9g}',
                                  f'{result.boundary_growth_rate_per_s[i, j]:.9g}',
-                                 f'{result.boundary_frequency_hz[i, j]:.9g}'])
+                                 f'{result.boundary_frequency_hz[i, j]:.9g}',
+                                 f'{result.boundary_steady_rop_m_per_s[i, j]:.9g}'])
     (directory / 'map.json').write_text(json.dumps(summary(result), indent=2) + '\n')
     (directory / 'config.yaml').write_text(
         yaml.safe_dump(config_to_dict(result.config), sort_keys=False))
@@ -74,6 +77,9 @@ def summary(result: MapResult) -> dict:
         'seed': spec.seed,
         'time_step_s': result.config.integration.time_step_s,
         'points': points,
+        'linear_comparison': {verdict: sum(r['linear_comparison'] == verdict
+                                           for r in result.rows)
+                              for verdict in ('agree', 'disagree', 'near_boundary', 'failed')},
         'failed_points': [{'top_drive_speed_rad_per_s': r['top_drive_speed_rad_per_s'],
                            'weight_on_bit_n': r['weight_on_bit_n'],
                            'time_s': r['failed_time_s'], 'error': r['error']}
