@@ -5,8 +5,9 @@ In steady drilling the bit turns with the top drive (omega = Omega), advances at
 bit-rock law gives at (Omega, f_bit) (Eq. 24, regularised), the string is twisted by the
 torque on bit plus the drag of the spinning string, and the hook load balances the weight:
 in the stationary mean ``f_bit = f_c + (H - H_S)`` (docs/MODEL-CHOICES.md, "Hook load and
-WOB"; the mass-proportional damping's drag on the descending string, a few newtons, is left
-out). So a weight on bit WOB (> 0 in compression, f_bit = -WOB) is set by the hook load
+WOB"; the mass-proportional damping's drag on the descending string adds alpha M ROP, a
+few newtons, which :func:`under_hook_load` includes). So a weight on bit WOB (> 0 in
+compression, f_bit = -WOB) is set by the hook load
 
     H = W - WOB,   W = H_S - f_c,
 
@@ -64,6 +65,29 @@ def string_weight_n(system: ReducedSystem) -> float:
 def hook_load_for(system: ReducedSystem, weight_on_bit_n: float) -> float:
     """The hook load (N) that sets a stationary weight on bit WOB (> 0 in compression)."""
     return string_weight_n(system) - float(weight_on_bit_n)
+
+
+def under_hook_load(system: ReducedSystem, law: BitRockLaw, top_speed_rad_per_s: float,
+                    hook_load_n: float, iterations: int = 4) -> SteadyDrilling:
+    """Steady drilling at the hook load H, with the drag of the descending string: the rigid
+    axial mode's balance b_r (f_bit - f_c) = C_rr ROP / b_r + h_r (H - H_S) (b_r, h_r its
+    values at the bit and the top) solved with the law's ROP(f_bit) by fixed point (the
+    drag changes f_bit by a few newtons, ROP by 1e-7 m/s)."""
+    wob = string_weight_n(system) - float(hook_load_n)
+    steady = SteadyDrilling.of(law, top_speed_rad_per_s, wob)
+    axial = system.blocks['axial']
+    rigid = np.flatnonzero(system.basis.rigid[system.basis_columns][axial.columns])
+    if rigid.size == 0:
+        return steady
+    column = axial.columns.start + rigid[0]
+    at_bit = axial.shapes[system.bit_node][rigid[0]]
+    prestress = system.model.prestress
+    for _ in range(iterations):
+        drag = system.damping[column, column] * steady.rop_m_per_s / at_bit
+        hook = system.top_axial_row[column] * (hook_load_n - prestress.hook_load_n)
+        force = prestress.static_weight_on_bit_n + (drag + hook) / at_bit
+        steady = SteadyDrilling.of(law, top_speed_rad_per_s, -force)
+    return steady
 
 
 def steady_coordinates(system: ReducedSystem, steady: SteadyDrilling, hook_load_n: float,

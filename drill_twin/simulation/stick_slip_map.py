@@ -36,7 +36,7 @@ from drill_twin.dynamics.bit_rock import BitRockLaw
 from drill_twin.dynamics.linear_stability import AxialTorsionalLinearisation, stability_grid
 from drill_twin.dynamics.reduced_system import build_reduced_system
 from drill_twin.dynamics.simulator import SimulationDiverged, Simulator
-from drill_twin.dynamics.steady_drilling import SteadyDrilling, hook_load_for, steady_coordinates
+from drill_twin.dynamics.steady_drilling import hook_load_for, steady_coordinates, under_hook_load
 from drill_twin.modal.reduced_basis import modal_analysis
 
 RAD_PER_S_TO_RPM = 60.0 / (2.0 * math.pi)
@@ -183,9 +183,9 @@ def run_point(config_json: str, spec: MapSpec, index: int) -> dict:
     config, system = _system_for(config_json)
     speed, wob = spec.point(index)
     law = BitRockLaw.from_config(config.bit_rock)
-    steady = SteadyDrilling.of(law, speed, wob)
-    stability = AxialTorsionalLinearisation(system).at(steady)
     hook = hook_load_for(system, wob)
+    steady = under_hook_load(system, law, speed, hook)
+    stability = AxialTorsionalLinearisation(system).at(steady)
     row = {name: math.nan for name in COLUMNS}
     row.update(index=index, top_drive_speed_rad_per_s=speed,
                top_drive_speed_rpm=speed * RAD_PER_S_TO_RPM, weight_on_bit_n=wob,
@@ -226,7 +226,7 @@ def _perturbation(system, spec: MapSpec, index: int) -> np.ndarray:
     return size * direction / np.linalg.norm(direction)
 
 
-def _integrate(config, system, spec: MapSpec, steady: SteadyDrilling, hook: float,
+def _integrate(config, system, spec: MapSpec, steady, hook: float,
                index: int) -> dict:
     simulator = Simulator(config, system=system)
     if spec.start == 'steady':
