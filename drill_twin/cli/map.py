@@ -13,6 +13,7 @@ SPEC_OPTIONS = {'speeds_rad_per_s': '--speeds', 'weights_on_bit_n': '--weights-o
                 'duration': '--duration', 'window': '--window', 'perturbation': '--perturbation',
                 'start': '--start', 'seed': '--seed'}
 """MapSpec's field names -> the options that set them (for one-line errors)."""
+DEFAULT_WINDOW_S = 20.0
 VALUES_HELP = ('a comma-separated list of values and ranges START:STOP:COUNT (COUNT evenly '
                'spaced values, both ends included), e.g. 2:20:10 or 5,10,15 or 2:8:4,12,20')
 
@@ -59,8 +60,9 @@ def add_parser(subparsers) -> None:
                              + VALUES_HELP + ' (e.g. 50e3:250e3:5)')
     parser.add_argument('--duration', type=float, default=80.0, metavar='S',
                         help='simulated time per point (s, default 80)')
-    parser.add_argument('--window', type=float, default=20.0, metavar='S',
-                        help='window at the end of each run for the statistics (s, default 20)')
+    parser.add_argument('--window', type=float, default=None, metavar='S',
+                        help='window at the end of each run for the statistics (s, default 20 '
+                             'or the whole run if shorter)')
     parser.add_argument('--start', choices=('steady', 'configured'), default='steady',
                         help='initial state: steady drilling at the point with the bit speed '
                              'perturbed (default), or the configuration\'s (untwisted string)')
@@ -85,13 +87,14 @@ def run(args: argparse.Namespace) -> int:
     if args.workers is not None and args.workers < 1:
         raise UsageError(f'--workers: must be at least 1, got {args.workers}')
     config = config_from_args(args)
+    window = args.window if args.window is not None else min(DEFAULT_WINDOW_S, args.duration)
     from drill_twin.simulation.stick_slip_map import MapSpec, run_map
     from drill_twin.simulation.stick_slip_map_io import write_map
     from drill_twin.uncertainty.executors import make_executor
 
     try:
         spec = MapSpec(speeds_rad_per_s=speeds, weights_on_bit_n=weights,
-                       duration_s=args.duration, window_s=args.window,
+                       duration_s=args.duration, window_s=window,
                        perturbation_rad_per_s=args.perturbation, start=args.start,
                        seed=args.seed)
     except ValueError as error:
