@@ -182,3 +182,11 @@ def test_a_diverging_point_is_a_failed_row_not_a_crash(tmp_path):
         written = next(csv.DictReader(stream))
     assert written['failed'] == '1' and written['stick_slip_severity'] == 'nan'
     assert json.loads((tmp_path / 'map.json').read_text())['failed_points']
+
+
+def test_docs_list_every_column():
+    from conftest import REPO
+
+    from drill_twin.simulation.stick_slip_map_io import markdown_table
+    text = (REPO / 'docs' / 'MAP.md').read_text()
+    assert markdown_table() in text, 'regenerate the table with markdown_table()'

@@ -75,7 +75,7 @@ COLUMNS = {
     'steady_torque_on_bit_nm': 'torque on bit of the law at steady drilling (N m)',
     'growth_rate_per_s': 'real part of the least-stable eigenvalue of the linearised '
                          'axial-torsional model (1/s; > 0 unstable)',
-    'frequency_hz': 'frequency of that eigenvalue, |imaginary part| / 2 pi (Hz)',
+    'frequency_hz': 'frequency of that eigenvalue, abs(imaginary part) / 2 pi (Hz)',
     'linearly_stable': '1 if the growth rate is negative',
     'linear_comparison': 'agree / disagree (linearly stable and SSI < 0.05, or unstable and '
                          'SSI >= 0.05), near_boundary (a grid neighbour lies on the other '

@@ -63,6 +63,13 @@ def write_map(result: MapResult, directory: str | Path, figure: bool = True) -> 
     return directory
 
 
+def markdown_table() -> str:
+    """The columns of map.csv as a Markdown table (docs/MAP.md prints it)."""
+    lines = ['| column | meaning |', '|---|---|']
+    lines += [f'| `{name}` | {meaning} |' for name, meaning in COLUMNS.items()]
+    return '\n'.join(lines)
+
+
 def summary(result: MapResult) -> dict:
     """The map's parameters, timing and failures."""
     spec = result.spec
