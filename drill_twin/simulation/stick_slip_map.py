@@ -23,7 +23,7 @@ import functools
 import json
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
@@ -160,7 +160,6 @@ class MapResult:
     boundary_steady_rop_m_per_s: np.ndarray
     wall_s: float = 0.0
     workers: int = 1
-    extra: dict = field(default_factory=dict)
 
     def column(self, name: str) -> np.ndarray:
         """A numeric column shaped like the grid, (n_wob, n_speed)."""
