@@ -15,7 +15,7 @@ from drill_twin.config import load_config
 from drill_twin.simulation.stick_slip_map import (COLUMNS, SSI_STEADY, MapSpec,
                                                   compare_with_linear_stability,
                                                   oscillation_frequency, run_map)
-from drill_twin.simulation.stick_slip_map_io import write_map
+from drill_twin.simulation.stick_slip_map_io import read_map, write_map
 from drill_twin.uncertainty.executors import SerialExecutor
 
 # A coarse string whose axial-torsional motion is linear but for the bit-rock law (seconds
@@ -182,6 +182,10 @@ def test_a_diverging_point_is_a_failed_row_not_a_crash(tmp_path):
         written = next(csv.DictReader(stream))
     assert written['failed'] == '1' and written['stick_slip_severity'] == 'nan'
     assert json.loads((tmp_path / 'map.json').read_text())['failed_points']
+    again = read_map(tmp_path)
+    assert again.spec == spec and again.failed_points()[0]['error'] == row['error']
+    assert_allclose(again.boundary_growth_rate_per_s, result.boundary_growth_rate_per_s,
+                    rtol=1e-8)
 
 
 def test_docs_list_every_column():

@@ -2,7 +2,8 @@
 
 Cells are coloured by the SSI of the simulated points; the contours SSI = 0.5 and 1 separate
 no stick-slip / stick-slip / full stick (the bit stops); points where the bit turned
-backwards are marked, failed points crossed out; the dashed line is the linear stability
+backwards are marked, failed points crossed out (their cells are left blank and the
+contours stop short of them); the dashed line is the linear stability
 boundary (growth rate 0) of steady drilling computed on a fine grid, the dotted one where the
 bit-rock law's steady ROP vanishes.
 """
@@ -54,8 +55,7 @@ def plot_map(result: MapResult, path: str | Path) -> Path:
                                          '(2 omega_mean)')
     handles = []
     if speeds.size > 1 and weights.size > 1 and finite.size:
-        filled = np.where(np.isfinite(ssi), ssi, 0.0)
-        lines = axes.contour(speeds, weights * kn, filled, levels=[SSI_STICK_SLIP, SSI_FULL_STICK],
+        lines = axes.contour(speeds, weights * kn, np.ma.masked_invalid(ssi), levels=[SSI_STICK_SLIP, SSI_FULL_STICK],
                              colors=['cyan', 'red'], linewidths=1.6)
         axes.clabel(lines, fmt={SSI_STICK_SLIP: 'stick-slip', SSI_FULL_STICK: 'full stick'},
                     fontsize=8)

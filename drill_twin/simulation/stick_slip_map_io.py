@@ -17,10 +17,11 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
 import yaml
 
-from drill_twin.config.loader import config_to_dict
-from drill_twin.simulation.stick_slip_map import COLUMNS, MapResult
+from drill_twin.config.loader import config_to_dict, load_config
+from drill_twin.simulation.stick_slip_map import COLUMNS, MapResult, MapSpec
 
 TEXT_COLUMNS = ('linear_comparison', 'error')
 INTEGER_COLUMNS = ('backward_rotation', 'lift_off_count', 'impact_count', 'linearly_stable',
@@ -61,6 +62,38 @@ def write_map(result: MapResult, directory: str | Path, figure: bool = True) -> 
         from drill_twin.plotting.map_figure import plot_map
         plot_map(result, directory / 'map.png')
     return directory
+
+
+def read_map(directory: str | Path) -> MapResult:
+    """A map back from its files (to redraw or analyse it without rerunning)."""
+    directory = Path(directory)
+    info = json.loads((directory / 'map.json').read_text())
+    spec = MapSpec(**{key: info[key] for key in ('speeds_rad_per_s', 'weights_on_bit_n',
+                                                  'duration_s', 'window_s', 'start', 'seed',
+                                                  'perturbation_rad_per_s')})
+    with open(directory / 'map.csv', newline='') as stream:
+        rows = [{name: _value(name, text) for name, text in row.items()}
+                for row in csv.DictReader(stream)]
+    for index, row in enumerate(rows):
+        row['index'] = index
+    grid = np.genfromtxt(directory / 'linear_stability.csv', delimiter=',', names=True)
+    speeds = np.unique(grid['top_drive_speed_rad_per_s'])
+    weights = np.unique(grid['weight_on_bit_n'])
+    shape = (weights.size, speeds.size)
+    return MapResult(spec=spec, config=load_config(directory / 'config.yaml'), rows=rows,
+                     boundary_speeds_rad_per_s=speeds, boundary_weights_on_bit_n=weights,
+                     boundary_growth_rate_per_s=grid['growth_rate_per_s'].reshape(shape),
+                     boundary_frequency_hz=grid['frequency_hz'].reshape(shape),
+                     boundary_steady_rop_m_per_s=grid['steady_rop_m_per_s'].reshape(shape),
+                     wall_s=info['wall_time_s'], workers=info['workers'])
+
+
+def _value(name: str, text: str):
+    if name in TEXT_COLUMNS:
+        return text
+    if name in INTEGER_COLUMNS and text != 'nan':
+        return int(text)
+    return float(text)
 
 
 def markdown_table() -> str:
