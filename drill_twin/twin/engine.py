@@ -317,6 +317,7 @@ class TwinEngine:
             'mean_model_resets': guarded.resets,
             'mean_model_failed_steps': guarded.failed_steps,
             'mean_model_implausible_steps': guarded.breaches,
+            'mean_model_diverged': guarded.resets - guarded.breaches,
             'ensemble_resets': self._ensemble_resets,
             'retries': self.retries,
             'rejected_commands': self.rejected_commands,
