@@ -104,8 +104,8 @@ class StringEnvelope:
         bha = _bha_weight(model, weight)
         wob_max = max(min(ENVELOPE_WEIGHT_ON_BIT_MAX_N, bha), -prestress.static_weight_on_bit_n)
         bottom = mesh.n_elements - 1
-        impedance = float(mesh.area_m2[bottom]) * math.sqrt(mesh.young_modulus_pa[bottom]
-                                                     * mesh.density_kg_per_m3[bottom])
+        impedance = float(mesh.area_m2[bottom]) * math.sqrt(
+            mesh.young_modulus_pa[bottom] * mesh.density_kg_per_m3[bottom])
         driven = system.basis.driven_rotation
         inertia = float(driven @ (model.total_mass @ driven))
         return cls(string_weight_n=float(weight), string_mass_kg=mass,
@@ -135,8 +135,8 @@ def _bha_weight(model, weight_n: float) -> float:
     top = mesh.node_x_m[elements[0]]
     if elements.size == 1:                       # N_0 falls to 0 at the free bit end
         first = elements[0]
-        return float(force[first] * (mesh.node_x_m[-1] - top) / (mesh.node_x_m[-1]
-                                                                  - middle[first]))
+        bit = mesh.node_x_m[-1]
+        return float(force[first] * (bit - top) / (bit - middle[first]))
     a, b = elements[0], elements[1]
     slope = (force[b] - force[a]) / (middle[b] - middle[a])
     return float(force[a] + slope * (top - middle[a]))

@@ -125,7 +125,8 @@ class StateGuard:
 
     def _bounds(self, top_speed_rad_per_s: float) -> dict[str, float]:
         """The speed, force and energy bounds at a top-drive speed, by measured quantity."""
-        return {'rop': self.axial_speed_max_m_per_s, 'top_axial_speed': self.axial_speed_max_m_per_s,
+        axial = self.axial_speed_max_m_per_s
+        return {'rop': axial, 'top_axial_speed': axial,
                 'bit_speed': self.rotation_speed_max(top_speed_rad_per_s),
                 'wob': self.weight_on_bit_max_n, 'tob': self.torque_on_bit_max_nm,
                 'kinetic_energy': self.kinetic_energy_max(top_speed_rad_per_s)}
