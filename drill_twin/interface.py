@@ -77,7 +77,14 @@ class QosSpec:
 
 
 STATE_QOS = QosSpec()
-"""Publications and commands: reliable, volatile, keep last 10 (reaches best-effort
-subscribers too)."""
+"""Publications: reliable, volatile, keep last 10 (reaches best-effort subscribers too)."""
+COMMAND_QOS = QosSpec(depth=1000)
+"""The command subscriptions, chosen for a controller: reliable (a setpoint is not lost on
+the way; a controller's default reliable publisher matches, a best-effort one does not),
+volatile (a setpoint from before the twin started is not replayed), keep last 1000: every
+command that arrives between two ticks is taken and counted (only the last of them takes
+effect, the others are counted as superseded); only a burst of more than 1000 commands within
+one tick overflows the queue, and those are counted as dropped from the gaps in the
+publisher's sequence numbers."""
 DIAGNOSTICS_QOS = QosSpec()
 CLOCK_QOS = QosSpec(reliability='best_effort', depth=1)

@@ -186,7 +186,7 @@ def recorded(ros, tmp_path_factory):
     """A 3 s fast run (4 members) heard by the probe and logged, with a valid speed and
     hook-load command and one rejected command at about 1 s."""
     folder = tmp_path_factory.mktemp('recorded')
-    twin = Twin(folder / 'logs', duration_s=DURATION_S, seed=5)
+    twin = Twin(folder / 'logs', duration_s=DURATION_S, seed=5, health_rate_hz=5.0)
     try:
         twin.spin_to(COMMAND_AT_S)
         hook_before = twin.received[itf.TOP_STATE][-1].effort[1]
@@ -277,12 +277,12 @@ def test_the_twin_catches_up_with_the_wall_clock_after_a_stall(twin_factory):
     node.engine.advance = stalled_once
     twin.spin_until(lambda: len(steps) > 1 and node._steps_behind_wall_clock() <= 1,
                     'the twin caught up')
-    assert steps[0] == 1 and set(steps) == {1, 2}
+    assert steps[0] in (1, 2) and set(steps) <= {1, 2}     # 2: a tick already late
     assert 20 <= steps.count(2) <= 45                  # the ~30 steps missed, one a tick
     lagging = [s for s in twin.statuses('drill_twin: twin health')
                if int({kv.key: kv.value for kv in s.values}['behind_wall_clock_ms']) > 100]
     assert lagging and all(s.level == DiagnosticStatus.WARN for s in lagging)
-    assert all(s.message == 'falling behind real time' for s in lagging)
+    assert all(s.message.startswith('falling behind real time') for s in lagging)
 
 
 def test_joint_states_are_well_formed(recorded):
@@ -327,7 +327,9 @@ def test_stamps_follow_the_twin_clock(recorded):
     for topic in per_tick:
         assert [stamp_ns(m) for m in received[topic]] == expected, topic
     diagnostics = [stamp_ns(m) for m in received[itf.DIAGNOSTICS]]
-    assert diagnostics == sorted(diagnostics) and set(diagnostics) <= set(expected)
+    # Health comes from a wall-clock timer: stamped with the twin's time then (0 before the
+    # first tick).
+    assert diagnostics == sorted(diagnostics) and set(diagnostics) <= set(expected) | {0}
     clock = [m.clock.sec * 1_000_000_000 + m.clock.nanosec for m in received[itf.CLOCK]]
     assert len(clock) > 0.5 * len(expected)                 # best effort: most of them
     assert clock == sorted(set(clock)) and set(clock) <= set(expected)
@@ -367,10 +369,11 @@ def test_wrench_stations_contacts_kpis(recorded):
     assert all(m.data >= 0 for m in received[itf.KPI_STICK_SLIP])
     health = [s for m in received[itf.DIAGNOSTICS] for s in m.status
               if s.name == 'drill_twin: twin health']
-    assert len(health) >= DURATION_S - 1
+    assert health                                  # from a wall-clock timer, and at the end
     values = {kv.key: kv.value for kv in health[-1].values}
     assert values['members'] == '5' and values['resets'] == '0'
     assert values['rejected_commands'] == '1'
+    assert values['commands_received'] == '3' and values['commands_dropped'] == '0'
     assert float(values['real_time_factor']) > 0 and float(values['tick_time_ms']) > 0
     assert float(values['ensemble_tick_time_ms']) > 0
     assert float(values['ensemble_iterations_per_step']) >= 1
@@ -533,7 +536,10 @@ def test_divergence_is_reported_and_nothing_garbage_published(twin_factory):
     twin = twin_factory(model_overrides=['integration.max_iterations=1',
                                          'integration.tolerance=1e-14'])
     twin.spin_until(lambda: twin.node.done.done() and twin.statuses('drill_twin: diverged')
-                    and twin.rosout(Log.ERROR, 'cannot be integrated'), 'divergence reports')
+                    and twin.rosout(Log.ERROR, 'cannot be integrated')
+                    and any(h.level == DiagnosticStatus.ERROR
+                            for h in twin.statuses('drill_twin: twin health')),
+                    'divergence reports')
     assert twin.node.failed and twin.node.done.result() is False
     status = twin.statuses('drill_twin: diverged')[0]
     assert status.level == DiagnosticStatus.ERROR
@@ -549,6 +555,9 @@ def test_divergence_is_reported_and_nothing_garbage_published(twin_factory):
         assert _finite([m.data for m in twin.received[topic]])
     stamps = [stamp_ns(m) for m in twin.received[itf.BIT_STATE]]
     assert stamps == sorted(stamps)
+    health = twin.statuses('drill_twin: twin health')
+    assert health[-1].level == DiagnosticStatus.ERROR
+    assert 'cannot be integrated' in health[-1].message
 
 
 # -- 7. the MCAP log -------------------------------------------------------------------------

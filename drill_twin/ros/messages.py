@@ -13,9 +13,10 @@ from std_msgs.msg import Float64, Float64MultiArray, Header, MultiArrayDimension
 
 from drill_twin import interface as itf
 from drill_twin.twin.engine import BitState, TwinEvent, TwinSnapshot
+from drill_twin.twin.health import HealthReport
 
-LEVELS = {'info': DiagnosticStatus.OK, 'warn': DiagnosticStatus.WARN,
-          'error': DiagnosticStatus.ERROR}
+LEVELS = {'info': DiagnosticStatus.OK, 'ok': DiagnosticStatus.OK,
+          'warn': DiagnosticStatus.WARN, 'error': DiagnosticStatus.ERROR}
 LOG_LEVELS = {'info': Log.INFO, 'warn': Log.WARN, 'error': Log.ERROR}
 
 
@@ -89,7 +90,35 @@ def contact_forces(snapshot: TwinSnapshot) -> Float64MultiArray:
 
 
 def scalar(value: float) -> Float64:
-    return Float64(data=float(value) if math.isfinite(value) else 0.0)
+    """A KPI; only finite values are published (the node skips a KPI it cannot compute)."""
+    if not math.isfinite(value):
+        raise ValueError(f'a KPI must be finite, got {value}')
+    return Float64(data=float(value))
+
+
+def tick_messages(snapshot: TwinSnapshot, stations_m, time_ns: int):
+    """(topic, message) of every tick: the bit state and wrench, the top, the wall contacts,
+    the stations."""
+    out = [(itf.BIT_STATE, bit_state(snapshot.bit, time_ns)),
+           (itf.BIT_WRENCH, bit_wrench(snapshot.bit, time_ns)),
+           (itf.TOP_STATE, top_state(snapshot, time_ns)),
+           (itf.CONTACT_FORCES, contact_forces(snapshot))]
+    return out + station_messages(snapshot, stations_m, time_ns)
+
+
+def kpi_messages(snapshot: TwinSnapshot):
+    """(topic, message) of the KPIs that could be computed (a None KPI is not published)."""
+    kpis = ((itf.KPI_STICK_SLIP, snapshot.stick_slip_severity), (itf.KPI_MSE, snapshot.mse_pa),
+            (itf.KPI_ROP, snapshot.rop_m_per_h))
+    return [(topic, scalar(value)) for topic, value in kpis if value is not None]
+
+
+def ensemble_messages(snapshot: TwinSnapshot, time_ns: int):
+    """(topic, message) of the ensemble's mean and bounds, stamped with its own time."""
+    return [(topic, bit_state(state, time_ns))
+            for topic, state in ((itf.ENSEMBLE_MEAN, snapshot.ensemble_mean),
+                                 (itf.ENSEMBLE_LOWER, snapshot.ensemble_lower),
+                                 (itf.ENSEMBLE_UPPER, snapshot.ensemble_upper))]
 
 
 def clock(time_ns: int) -> Clock:
@@ -109,9 +138,13 @@ def events(events: tuple[TwinEvent, ...], time_ns: int) -> DiagnosticArray:
                 {'sim_time_s': f'{e.time_s:.6f}', **e.values}) for e in events])
 
 
-def health(values: dict, level: str, message: str, time_ns: int) -> DiagnosticArray:
+def health_report(report: HealthReport, time_ns: int) -> DiagnosticArray:
+    """``drill_twin: twin health``: level and message of the report, its figures, and every
+    reason as ``reason_1``, ``reason_2``, ... (so that no reason is only on /rosout)."""
+    values = dict(report.values)
+    values.update({f'reason_{k}': text for k, text in enumerate(report.reasons, start=1)})
     return DiagnosticArray(header=header(time_ns, ''),
-                           status=[_status(level, 'twin health', message, values)])
+                           status=[_status(report.level, 'twin health', report.message, values)])
 
 
 def log(level: str, text: str, name: str, time_ns: int) -> Log:

@@ -1,13 +1,19 @@
 """The twin as an rclpy node: a thin boundary around :class:`~drill_twin.twin.engine.TwinEngine`.
 
-A timer (``rate_hz``, 100 Hz by default) advances the engine by 1 / rate_hz of simulated time
-in model sub-steps and publishes the results. A timer that fires late skips the periods it
-missed, so a tick that finds the twin's clock behind the wall clock (a stall of the machine)
-takes extra steps, at most as many again as a tick's, until it has caught up. With ``fast``
-or ``use_sim_time`` it ticks as fast as it can and publishes /clock. Commands arrive on two Float64 topics and take effect on
-the next model step. Every published message, the commands as applied and the twin's own log
-lines are recorded to an MCAP log. Header stamps, /clock and the log times use the twin's
-clock: the ROS time at start plus the simulated time (from zero in fast mode).
+A timer (``rate_hz``, 100 Hz by default) advances the engine by the model steps whose time the
+wall clock has reached, and publishes the results: the twin's clock never runs ahead of the
+wall clock. A tick normally takes 1 / rate_hz of simulated time; a step longer than a tick
+(``time_step_s`` > 1 / rate_hz) is taken by the tick that reaches it (the ticks between take
+none and publish nothing); a tick that finds the twin behind the wall clock (a stall of the
+machine) takes extra steps, at most as many again as a tick's, until it has caught up. With
+``fast`` or ``use_sim_time`` it ticks as fast as it can and publishes /clock. Commands arrive
+on two Float64 topics and take effect on the next model step; they are counted on arrival,
+with those rejected, dropped (gaps in the publisher's sequence numbers) and superseded (a
+later command arrived before the tick). Health is reported from a wall-clock timer of its own
+(``health_rate_hz``), so a twin whose clock stands still still reports. Every published
+message, the commands as applied and the twin's own log lines are recorded to an MCAP log.
+Header stamps, /clock and the log times use the twin's clock: the ROS time at start plus the
+simulated time (from zero in fast mode).
 """
 from __future__ import annotations
 
@@ -22,6 +28,7 @@ from threadpoolctl import threadpool_limits
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 SetParametersResult)
 from rclpy._rclpy_pybind11 import RCLError
+from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import ParameterUninitializedException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
@@ -41,8 +48,36 @@ from drill_twin.ros import messages
 from drill_twin.ros.parameters import BY_NAME, PARAMETERS, unsafe_change_reason
 from drill_twin.twin.engine import (CommandLimits, CommandRejected, EnsembleSettings,
                                     TwinEngine, TwinStalled)
+from drill_twin.twin.health import HealthMonitor
 
 FAST_PERIOD_S = 1e-6
+FROZEN_AFTER_S = 1.0
+"""Wall time without a step after which health warns that the twin's clock stands still (s)."""
+
+
+class StopFuture(Future):
+    """The node's ``done`` future, registering each distinct done callback once.
+
+    rclpy 7.1 (Jazzy) adds a fresh ``lambda x: self.wake()`` to the awaited future on every
+    turn of ``Executor.spin_until_future_complete`` (ros2/rclpy#1374, #1702): a future awaited
+    for hours collects one closure per tick, about 200 bytes, the node's whole memory growth
+    (1.2 MB/min at 100 Hz, issue 9). Callbacks of the same code and the same captured objects
+    do the same thing; the first one is kept, the repeats are dropped.
+    """
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self._registered = set()
+
+    def add_done_callback(self, callback):
+        code = getattr(callback, '__code__', None)
+        if code is not None and self._pending():
+            cells = tuple(id(cell.cell_contents) for cell in callback.__closure__ or ())
+            key = (code, cells)
+            if key in self._registered:
+                return
+            self._registered.add(key)
+        super().add_done_callback(callback)
 
 
 class LogDirectoryError(RuntimeError):
@@ -97,20 +132,30 @@ class TwinNode(Node):
             self.ticks = 0
             self._pace_origin_ns = None
             self.failed = False
-            self.done = Future()
+            self.done = StopFuture()
             self._health_mark = (time.perf_counter(), 0.0)
+            self._advanced_at = time.monotonic()    # the last tick that took steps
+            self.monitor = HealthMonitor()
+            self._latest_health = {}
+            self.commands_superseded = 0
+            self.commands_dropped = 0
+            self._pending_commands = set()          # accepted since the last tick
+            self._sequence = {}                     # last publication sequence number, by topic
             self._outputs = {}
             for topic, (type_, qos) in self._published_topics().items():
                 self._outputs[topic] = self.create_publisher(type_, topic, rclpy_qos_profile(qos))
-            command_qos = rclpy_qos_profile(itf.STATE_QOS)
-            self.create_subscription(Float64, itf.CMD_TOP_DRIVE_SPEED, self._on_top_drive_speed,
-                                     command_qos)
-            self.create_subscription(Float64, itf.CMD_HOOK_LOAD, self._on_hook_load, command_qos)
+            command_qos = rclpy_qos_profile(itf.COMMAND_QOS)
+            self._commands = {
+                topic: self.create_subscription(Float64, topic, callback, command_qos)
+                for topic, callback in ((itf.CMD_TOP_DRIVE_SPEED, self._on_top_drive_speed),
+                                        (itf.CMD_HOOK_LOAD, self._on_hook_load))}
             # The twin's clock starts as late as it can: the first tick should find it on time.
             self.epoch_ns = 0 if self.fast else self.get_clock().now().nanoseconds
             self.log = self._open_log(p) if p['log_enabled'] else None
             self.timer = self.create_timer(FAST_PERIOD_S if self.fast else 1.0 / p['rate_hz'],
                                            self._on_tick)
+            self.health_timer = self.create_timer(1.0 / p['health_rate_hz'], self._on_health,
+                                                  clock=Clock(clock_type=ClockType.STEADY_TIME))
             self.add_on_set_parameters_callback(self._on_set_parameters)
             self._report('info', f'drill_twin {__version__}: {self.engine.ensemble.members} '
                          f'ensemble members (delta {p["ensemble_dispersion"]:g}, seed '
@@ -210,59 +255,71 @@ class TwinNode(Node):
         return self.epoch_ns + self.engine.step_index * self.dt_ns
 
     # -- commands ------------------------------------------------------------------------
-    def _on_top_drive_speed(self, message: Float64) -> None:
-        self._command(itf.CMD_TOP_DRIVE_SPEED, message, self.engine.set_top_drive_speed)
+    def _on_top_drive_speed(self, message: Float64, info) -> None:
+        self._command(itf.CMD_TOP_DRIVE_SPEED, message, info, self.engine.set_top_drive_speed)
 
-    def _on_hook_load(self, message: Float64) -> None:
-        self._command(itf.CMD_HOOK_LOAD, message, self.engine.set_hook_load)
+    def _on_hook_load(self, message: Float64, info) -> None:
+        self._command(itf.CMD_HOOK_LOAD, message, info, self.engine.set_hook_load)
 
-    def _command(self, topic, message, apply) -> None:
+    def _command(self, topic, message, info, apply) -> None:
+        self._count_dropped(topic, info)
         try:
-            apply(message.data)
+            apply(message.data)                     # counts it (received, rejected)
         except CommandRejected as error:
             self._report('warn', f'{topic}: {error}; the previous command stays')
             return
+        if topic in self._pending_commands:         # the previous one never took effect
+            self.commands_superseded += 1
+        self._pending_commands.add(topic)
         if self.log:
             self.log.write(topic, message, self.twin_time_ns())    # takes effect at this time
+
+    def _count_dropped(self, topic: str, info) -> None:
+        """Commands lost on the way: gaps in the publisher's sequence numbers (counted while
+        one publisher sends the topic: the numbers of several publishers interleave)."""
+        sequence = info.get('publication_sequence_number') if info else None
+        if sequence is None:
+            return
+        last = self._sequence.get(topic)
+        if (last is not None and sequence > last + 1
+                and self._commands[topic].get_publisher_count() == 1):
+            self.commands_dropped += sequence - last - 1
+        self._sequence[topic] = sequence
 
     # -- the tick ------------------------------------------------------------------------
     def _on_tick(self) -> None:
         if self.done.done() or not self.context.ok():       # stopping: publish nothing more
             return
+        steps = self._steps_this_tick()
+        if steps == 0:                      # the wall clock has not reached the next step
+            return
         if self.ticks == 0:                 # the real-time factor counts from the first tick
             self._health_mark = (time.perf_counter(), self.engine.time_s)
         try:
-            snapshot = self.engine.advance(self._steps_this_tick())
+            snapshot = self.engine.advance(steps)
         except TwinStalled as error:
-            self._report('error', f'{error}; stopping')
-            self.failed = True
-            self.done.set_result(False)
+            self._stalled(error)
             return
         self.ticks += 1
+        self._advanced_at = time.monotonic()
+        self._pending_commands.clear()
+        self._latest_health = snapshot.health
+        self.monitor.observe_events(snapshot.events)
         now = self.twin_time_ns()
-        self._publish(itf.BIT_STATE, messages.bit_state(snapshot.bit, now), now)
-        self._publish(itf.BIT_WRENCH, messages.bit_wrench(snapshot.bit, now), now)
-        self._publish(itf.TOP_STATE, messages.top_state(snapshot, now), now)
-        self._publish(itf.CONTACT_FORCES, messages.contact_forces(snapshot), now)
-        for topic, message in messages.station_messages(snapshot, self.stations_m, now):
+        for topic, message in messages.tick_messages(snapshot, self.stations_m, now):
             self._publish(topic, message, now)
         if self._due(self.params['kpi_rate_hz']):
-            self._publish(itf.KPI_STICK_SLIP, messages.scalar(snapshot.stick_slip_severity), now)
-            self._publish(itf.KPI_MSE, messages.scalar(snapshot.mse_pa), now)
-            self._publish(itf.KPI_ROP, messages.scalar(snapshot.rop_m_per_h), now)
+            for topic, message in messages.kpi_messages(snapshot):
+                self._publish(topic, message, now)
         if snapshot.ensemble_mean is not None and self._due(self.params['ensemble_rate_hz']):
             stamp = self.epoch_ns + snapshot.ensemble_step * self.dt_ns     # a tick behind
-            for topic, state in ((itf.ENSEMBLE_MEAN, snapshot.ensemble_mean),
-                                 (itf.ENSEMBLE_LOWER, snapshot.ensemble_lower),
-                                 (itf.ENSEMBLE_UPPER, snapshot.ensemble_upper)):
-                self._publish(topic, messages.bit_state(state, stamp), now)
+            for topic, message in messages.ensemble_messages(snapshot, stamp):
+                self._publish(topic, message, now)
         if snapshot.events:
             self._publish(itf.DIAGNOSTICS, messages.events(snapshot.events, now), now)
             for event in snapshot.events:
                 if event.kind != 'command_rejected':            # already reported
                     self._report(event.level, event.message)
-        if self._due(self.params['health_rate_hz']):
-            self._publish_health(snapshot, now)
         if self.fast:
             self._publish(itf.CLOCK, messages.clock(now), now)
         if self.log and not self.log.open:          # a write failed (disk full, ...)
@@ -272,18 +329,29 @@ class TwinNode(Node):
         duration = self.params['duration_s']
         if duration > 0 and self.engine.time_s >= duration - 0.5 * self.engine.dt:
             self._report('info', f'{duration:g} s simulated: stopping')
+            self._publish_health()                  # the last period's report
             self.done.set_result(True)
 
     def _steps_this_tick(self) -> int:
-        """A tick's steps, plus up to as many again while the twin is behind the wall clock."""
+        """Fast: a tick's steps. Real time: the steps whose time the wall clock has reached,
+        at most as many again as a tick's while catching up, so the twin's clock (epoch plus
+        simulated time) never runs ahead of the wall clock."""
         if self.fast:
             return self.substeps
-        if self._pace_origin_ns is None:            # the first tick sets the pace
-            self._pace_origin_ns = (self.get_clock().now().nanoseconds
-                                    - self.substeps * self.dt_ns)
-            return self.substeps
-        behind = self._steps_behind_wall_clock() - self.substeps
-        return self.substeps + min(max(behind, 0), self.substeps)
+        now = self.get_clock().now().nanoseconds
+        if self._pace_origin_ns is None:
+            # The start-up before the first tick does not count; never earlier than the epoch.
+            self._pace_origin_ns = max(self.epoch_ns, now - self.substeps * self.dt_ns)
+        due = (now - self._pace_origin_ns) // self.dt_ns - self.engine.step_index
+        return int(min(max(due, 0), 2 * self.substeps))
+
+    def _stalled(self, error: TwinStalled) -> None:
+        """The model cannot go on: report it (rosout and an ERROR health status), stop."""
+        self.monitor.note('error', 'stalled', str(error))
+        self._report('error', f'{error}; stopping')
+        self._publish_health()
+        self.failed = True
+        self.done.set_result(False)
 
     def _steps_behind_wall_clock(self) -> int:
         """Whole model steps the twin has fallen behind the ROS clock since its first tick
@@ -308,32 +376,59 @@ class TwinNode(Node):
         if self.log:
             self.log.write_serialized(topic, data, time_ns)
 
-    def _publish_health(self, snapshot, now: int) -> None:
+    def _on_health(self) -> None:
+        if self.done.done() or not self.context.ok():
+            return
+        self._publish_health()
+
+    def _publish_health(self) -> None:
+        """The health report of the period since the last one, on /diagnostics."""
+        values = self._health_values()
+        counters = dict(self._latest_health, commands_dropped=self.commands_dropped)
+        report = self.monitor.report(counters, values)
+        now = self.twin_time_ns()
+        self._publish(itf.DIAGNOSTICS, messages.health_report(report, now), now)
+        if self.log:
+            self.log.flush()
+
+    def _health_values(self) -> dict:
+        """The figures of a health report; notes lag and a missing log in the monitor."""
         wall, simulated = time.perf_counter(), self.engine.time_s
         previous_wall, previous_simulated = self._health_mark
         self._health_mark = (wall, simulated)
         factor = (simulated - previous_simulated) / max(wall - previous_wall, 1e-9)
-        h = snapshot.health
+        h = self._latest_health
         lag_s = 0.0 if self.fast else self._steps_behind_wall_clock() * self.engine.dt
-        behind = not self.fast and (factor < 0.95 or lag_s > 0.1)
+        if not self.fast and self.ticks and (factor < 0.95 or lag_s > 0.1):
+            self.monitor.note('warn', 'lag', f'falling behind real time ({1e3 * lag_s:.0f} ms '
+                              f'behind the wall clock, real-time factor {factor:.3f})')
+        still = time.monotonic() - self._advanced_at
+        if self.ticks and still > FROZEN_AFTER_S:
+            self.monitor.note('warn', 'frozen', f'the twin\'s clock has not advanced for '
+                              f'{still:.1f} s')
+        logging = bool(self.log and self.log.open)
+        if self.params['log_enabled'] and not logging:
+            self.monitor.note('warn', 'log', 'no log is being written (it could not be opened '
+                              'or a write failed; the twin runs on without it)')
         values = {'real_time_factor': f'{factor:.3f}', 'sim_time_s': f'{simulated:.3f}',
                   'behind_wall_clock_ms': f'{1e3 * max(lag_s, 0.0):.0f}',
-                  'tick_time_ms': f'{1e3 * h["tick_wall_time_s"]:.2f}',
-                  'tick_time_max_ms': f'{1e3 * h["tick_wall_time_max_s"]:.2f}',
                   'tick_period_ms': f'{1e3 * self.tick_s:.2f}',
-                  'iterations_per_step': f'{h["iterations_per_step"]:.2f}',
-                  'ensemble_iterations_per_step': f'{h["ensemble_iterations_per_step"]:.2f}',
-                  'ensemble_tick_time_ms': f'{1e3 * h["ensemble_tick_wall_time_s"]:.2f}',
-                  'members': h['members'], 'resets': h['resets'],
-                  'rejected_commands': h['rejected_commands'],
-                  'ensemble_members_touching_wall': h['ensemble_members_touching_wall'],
-                  'ensemble_members_lifted_off': h['ensemble_members_lifted_off'],
-                  'log': str(self.log.path) if self.log and self.log.open else 'none'}
-        message = ('falling behind real time' if behind else 'running')
-        self._publish(itf.DIAGNOSTICS, messages.health(values, 'warn' if behind else 'info',
-                                                       message, now), now)
-        if self.log:
-            self.log.flush()
+                  'commands_received': self.engine.commands_received,
+                  'commands_dropped': self.commands_dropped,
+                  'commands_superseded': self.commands_superseded,
+                  'log': str(self.log.path) if logging else 'none'}
+        for key, scale, unit in (('tick_wall_time_s', 1e3, 'tick_time_ms'),
+                                 ('tick_wall_time_max_s', 1e3, 'tick_time_max_ms'),
+                                 ('ensemble_tick_wall_time_s', 1e3, 'ensemble_tick_time_ms')):
+            values[unit] = f'{scale * h.get(key, 0.0):.2f}'
+        for key in ('iterations_per_step', 'ensemble_iterations_per_step'):
+            values[key] = f'{h.get(key, 0.0):.2f}'
+        for key in ('members', 'resets', 'rejected_commands', 'mean_model_resets',
+                    'mean_model_failed_steps', 'mean_model_implausible_steps',
+                    'ensemble_resets', 'retries', 'ensemble_members_touching_wall',
+                    'ensemble_members_lifted_off'):
+            values[key] = h.get(key, 0)
+        return values
 
     def _report(self, level: str, text: str) -> None:
         """A log line to rosout, and to the MCAP log's /rosout."""
@@ -365,6 +460,8 @@ class TwinNode(Node):
         if updated['hook_load_min_n'] > updated['hook_load_max_n']:
             return SetParametersResult(successful=False,
                                        reason='hook_load_min_n must not exceed hook_load_max_n')
+        if updated['health_rate_hz'] != self.params['health_rate_hz']:
+            self.health_timer.timer_period_ns = int(round(1e9 / updated['health_rate_hz']))
         self.params = updated
         self.engine.limits = self._limits(updated)
         self.engine.kpi_window_s = float(updated['kpi_window_s'])

@@ -7,7 +7,11 @@ its own, stepped under the same commands in this process or in a worker process.
 ensemble and collects the previous tick's ensemble, watches for borehole impacts and bit
 lift-offs of the mean model, keeps drilling indicators over a moving window, and returns a
 :class:`TwinSnapshot`. A member that diverges is restarted from a safe state (its depth kept),
-the step is retried once, and the reset is reported; nothing from a failed step is returned.
+the step is retried once, and the reset is reported; a member whose step breaks a physical
+bound (:mod:`~drill_twin.twin.guard`) is put back to its last good state and restarted there;
+nothing from a failed or implausible step is returned. Commands are accepted only inside the
+range the model can represent (:mod:`~drill_twin.twin.envelope`), within the operator's limits.
+A configuration whose initial state already breaks a bound is refused (ConfigError).
 If the mean model keeps failing even from the safe state the engine raises TwinStalled rather
 than let the twin's clock stand still; an ensemble worker that cannot start is replaced by an
 in-process ensemble (a warning event), one that fails later is dropped with an error event
@@ -23,11 +27,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from drill_twin.config import ConfigError
 from drill_twin.config.schema import DrillStringConfig
 from drill_twin.dynamics import kpi
 from drill_twin.dynamics.simulator import Observation, Simulator
 from drill_twin.twin.ensemble import (BIT_FIELDS, EnsembleFailed, EnsembleResult,
                                       EnsembleSettings, LocalEnsemble, open_ensemble)
+from drill_twin.twin.envelope import StringEnvelope
 from drill_twin.twin.stepping import (MAX_CONSECUTIVE_FAILURES, GuardedSimulator, TwinEvent,
                                       TwinStalled)
 
@@ -41,7 +47,8 @@ class CommandRejected(ValueError):
 
 @dataclass(frozen=True)
 class CommandLimits:
-    """Accepted command ranges (rad/s and N)."""
+    """The operator's command ranges (rad/s and N), a clamp on top of what the model can
+    represent (the hook load's range derived from the string, :mod:`.envelope`)."""
 
     top_drive_speed_max_rad_per_s: float = 30.0
     hook_load_min_n: float = 0.0
@@ -68,8 +75,10 @@ class TwinSnapshot:
     over the random members, at the ensemble's own step ``ensemble_step`` and time
     ``ensemble_time_s``, one tick behind the mean model (all None without an ensemble);
     observation: the full mean-model observation (top, stations, wall); kpis: stick-slip
-    severity (-), MSE (Pa), ROP (m/h) over the KPI window; events since the last tick;
-    health: step and timing figures.
+    severity (-), MSE (Pa), ROP (m/h) over the KPI window, each None when it cannot be
+    computed (no window yet, the bit not turning forwards or not advancing on average, or a
+    non-finite value): never a substitute number; events since the last tick; health: step,
+    timing and failure counters.
     """
 
     time_s: float
@@ -81,9 +90,9 @@ class TwinSnapshot:
     ensemble_step: int | None
     ensemble_time_s: float | None
     observation: Observation
-    stick_slip_severity: float
-    mse_pa: float
-    rop_m_per_h: float
+    stick_slip_severity: float | None
+    mse_pa: float | None
+    rop_m_per_h: float | None
     events: tuple
     health: dict
 
@@ -108,7 +117,12 @@ class TwinEngine:
         self.ensemble = ensemble
         self.limits = limits
         self.simulator = Simulator(config, members=1, system=system)
+        self.envelope = StringEnvelope.of(self.simulator.system)
         self._mean = GuardedSimulator(self.simulator, first_member=0, name='the mean model')
+        initial = self._mean.guard.check(self.simulator)
+        if initial:
+            raise ConfigError('configuration', '', f'the model cannot be integrated: at t = 0 '
+                              f'{initial[0]}')
         self.dt = self.simulator.dt
         self.step_index = 0
         self._window = _RingBuffer(5, 2)
@@ -118,6 +132,7 @@ class TwinEngine:
         self._wall_per_tick = deque(maxlen=100)
         self._iterations = deque(maxlen=100)
         self.rejected_commands = 0
+        self.commands_received = 0
         try:
             self.ensemble_runner = open_ensemble(config, ensemble, self.simulator.system)
         except EnsembleFailed as error:
@@ -128,6 +143,11 @@ class TwinEngine:
         self._ensemble_latest: EnsembleResult | None = (
             self.ensemble_runner.latest if self.ensemble_runner else None)
         self._ensemble_resets = 0
+
+    @property
+    def retries(self) -> int:
+        """Sub-step retries of the mean model's simulator so far (0 if it has none)."""
+        return int(getattr(self.simulator, 'retries', 0))
 
     @property
     def resets(self) -> int:
@@ -156,12 +176,17 @@ class TwinEngine:
         self.simulator.set_top_drive_speed(float(rad_per_s))
 
     def set_hook_load(self, newton: float) -> None:
-        """Hook load command (N), applied from the next step; raises CommandRejected."""
+        """Hook load command (N), applied from the next step; raises CommandRejected.
+
+        Accepted inside the operator's limits and the range the model can represent (the
+        string's weight minus the largest WOB up to the weight plus the drag of a string
+        rising at block speed, :class:`~drill_twin.twin.envelope.StringEnvelope`)."""
         self._check('hook load', newton, self.limits.hook_load_min_n,
-                    self.limits.hook_load_max_n, 'N')
+                    self.limits.hook_load_max_n, 'N', self.envelope.hook_load_reason)
         self.simulator.set_hook_load(float(newton))
 
-    def _check(self, what, value, low, high, unit):
+    def _check(self, what, value, low, high, unit, physics=None):
+        self.commands_received += 1
         try:
             value = float(value)
         except (TypeError, ValueError):
@@ -171,6 +196,8 @@ class TwinEngine:
             reason = f'{what} command {value} is not a finite number'
         elif not low <= value <= high:
             reason = f'{what} command {value:g} {unit} is outside [{low:g}, {high:g}] {unit}'
+        elif physics is not None:
+            reason = physics(value)
         if reason:
             self.rejected_commands += 1
             self._events.append(TwinEvent('command_rejected', 'warn', self.time_s,
@@ -225,7 +252,7 @@ class TwinEngine:
             latest = self.ensemble_runner.collect()
             self.ensemble_runner.start(steps, self.top_drive_speed_command,
                                        self.hook_load_command)
-        except EnsembleFailed as error:
+        except (EnsembleFailed, TwinStalled) as error:
             self.ensemble_runner.close()
             self.ensemble_runner, self._ensemble_latest = None, None
             self._events.append(TwinEvent(
@@ -275,17 +302,10 @@ class TwinEngine:
             low, high = _quantiles(ensemble.bit, 0.025, 0.975)
             lower, upper = BitState(*map(float, low)), BitState(*map(float, high))
             ensemble_step, ensemble_time = ensemble.step, ensemble.time_s
-        window = self.kpi_window_samples()
-        if window.shape[0] >= 2:
-            ssi = float(kpi.stick_slip_severity(window[:, 1]))
-            mse = float(kpi.mechanical_specific_energy(window[:, 3], window[:, 4], window[:, 1],
-                                                       window[:, 2],
-                                                       self.config.borehole.diameter_m))
-            rop = float(np.mean(window[:, 2]))
-        else:
-            ssi, mse, rop = 0.0, float('nan'), float(o.rop_m_per_s[0])
+        ssi, mse, rop = self._kpis()
         events, self._events = tuple(self._events), []
         wall = np.array(self._wall_per_tick) if self._wall_per_tick else np.zeros(1)
+        guarded = self._mean
         health = {
             'members': 1 + (self.ensemble.members if ensemble is not None else 0),
             'tick_wall_time_s': float(wall[-1]),
@@ -294,7 +314,14 @@ class TwinEngine:
             'ensemble_iterations_per_step': ensemble.iterations_per_step if ensemble else 0.0,
             'ensemble_tick_wall_time_s': ensemble.wall_s if ensemble else 0.0,
             'resets': self.resets,
+            'mean_model_resets': guarded.resets,
+            'mean_model_failed_steps': guarded.failed_steps,
+            'mean_model_implausible_steps': guarded.breaches,
+            'mean_model_diverged': guarded.resets - guarded.breaches,
+            'ensemble_resets': self._ensemble_resets,
+            'retries': self.retries,
             'rejected_commands': self.rejected_commands,
+            'commands_received': self.commands_received,
             'ensemble_members_touching_wall': ensemble.touching_wall if ensemble else 0,
             'ensemble_members_lifted_off': ensemble.lifted_off if ensemble else 0,
         }
@@ -302,7 +329,20 @@ class TwinEngine:
                             ensemble_lower=lower, ensemble_upper=upper,
                             ensemble_step=ensemble_step, ensemble_time_s=ensemble_time,
                             observation=o, stick_slip_severity=ssi, mse_pa=mse,
-                            rop_m_per_h=3600.0 * rop, events=events, health=health)
+                            rop_m_per_h=rop, events=events, health=health)
+
+    def _kpis(self) -> tuple[float | None, float | None, float | None]:
+        """(stick-slip severity, MSE in Pa, ROP in m/h) over the KPI window; None where a
+        value cannot be computed (fewer than two samples, non-finite)."""
+        window = self.kpi_window_samples()
+        if window.shape[0] < 2:
+            return None, None, None
+        with np.errstate(all='ignore'):
+            ssi = kpi.stick_slip_severity(window[:, 1])
+            mse = kpi.mechanical_specific_energy(window[:, 3], window[:, 4], window[:, 1],
+                                                 window[:, 2], self.config.borehole.diameter_m)
+            rop = 3600.0 * np.mean(window[:, 2])
+        return tuple(float(v) if np.isfinite(v) else None for v in (ssi, mse, rop))
 
 
 def _quantiles(values: np.ndarray, *probabilities):

@@ -1,16 +1,28 @@
-"""Stepping a batch that may diverge: restart the failed members from a safe state, retry.
+"""Stepping a batch that may diverge or break physics: restart the failed members, go on.
 
-The twin must never stop its clock or publish a failed step. :class:`GuardedSimulator` wraps
-a :class:`~drill_twin.dynamics.simulator.Simulator`: a step that diverges has its failed
-members restarted from a safe state (their depth kept) and is retried once; if that fails
-too the step is skipped, and after MAX_CONSECUTIVE_FAILURES skipped steps in a row it raises
-TwinStalled. Every restart becomes a :class:`TwinEvent`.
+The twin must never stop its clock or publish a failed or implausible step.
+:class:`GuardedSimulator` wraps a :class:`~drill_twin.dynamics.simulator.Simulator`:
+
+- a step that diverges has its failed members restarted from a safe state (their depth
+  kept) and is retried once; if that fails too the step is skipped;
+- a step that converges is checked by the :class:`~drill_twin.twin.guard.StateGuard`: a
+  member that breaks a physical bound is put back to its state before the step (the last
+  good one) and restarted from a safe state at that depth; if even the safe state breaks a
+  bound (a configuration that cannot represent the operating point) it keeps its last good
+  state. The other members keep their step.
+
+After MAX_CONSECUTIVE_FAILURES skipped steps in a row, or as many breaches in a row of one
+member, it raises TwinStalled. Every restart becomes a :class:`TwinEvent` ('diverged' or
+'implausible'; level 'error' for the mean model, 'warn' for ensemble members).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from drill_twin.dynamics.simulator import SimulationDiverged, Simulator
+from drill_twin.twin.guard import StateGuard
 
 
 class TwinStalled(RuntimeError):
@@ -27,7 +39,8 @@ class TwinEvent:
     """Something the rig should hear about.
 
     kind: 'impact' (a node touches the wall), 'contact_end', 'lift_off', 'landing',
-    'diverged' (a member was reset), 'command_rejected', 'ensemble_failed'. level: 'info',
+    'diverged' (a member was reset after a failed step), 'implausible' (a member broke a
+    physical bound and was reset), 'command_rejected', 'ensemble_failed'. level: 'info',
     'warn' or 'error'.
     """
 
@@ -39,7 +52,7 @@ class TwinEvent:
 
 
 class GuardedSimulator:
-    """A simulator whose failed steps restart the failed members and are retried once.
+    """A simulator whose failed or implausible steps restart the members concerned.
 
     Args:
         simulator: the batch.
@@ -47,43 +60,101 @@ class GuardedSimulator:
             the ensemble members 1..N).
         name: what the batch is called in messages when it holds one member
             ('the mean model') or when any member fails ('ensemble members').
+        guard: the physical bounds (derived from the simulator's system if None).
+
+    Counters: ``resets`` (members restarted), ``failed_steps`` (steps skipped after a
+    failed retry), ``breaches`` (member steps that broke a bound).
     """
 
-    def __init__(self, simulator: Simulator, first_member: int, name: str):
+    def __init__(self, simulator: Simulator, first_member: int, name: str,
+                 guard: StateGuard | None = None):
         self.simulator = simulator
         self.first_member = first_member
         self.name = name
+        self.guard = guard or StateGuard(simulator.system, simulator.law)
+        self.level = 'error' if first_member == 0 else 'warn'
         self.events: list[TwinEvent] = []
         self.resets = 0
+        self.failed_steps = 0
+        self.breaches = 0
         self._consecutive_failures = 0
+        self._consecutive_breaches = np.zeros(simulator.members, dtype=int)
 
     def step(self):
         """One step; the StepResult, or None if the step failed even after a restart."""
         for _ in range(2):
+            before = self.simulator.state.copy()
             try:
                 result = self.simulator.step()
-                self._consecutive_failures = 0
-                return result
             except SimulationDiverged as error:
                 self._recover(error)
+                continue
+            self._consecutive_failures = 0
+            self._contain(self.guard.check(self.simulator), before)
+            return result
         self._consecutive_failures += 1
+        self.failed_steps += 1
         if self._consecutive_failures >= MAX_CONSECUTIVE_FAILURES:
             raise TwinStalled(f'{MAX_CONSECUTIVE_FAILURES} steps in a row failed, even from a '
                               f'safe state, at t = {self.simulator.time_s:.6g} s: the model '
                               f'cannot be integrated with this configuration')
         return None
 
+    def _which(self, members) -> tuple[str, list[int]]:
+        numbers = [self.first_member + m for m in members]
+        which = self.name if self.simulator.members == 1 else f'{self.name} {numbers}'
+        return which, numbers
+
     def _recover(self, error: SimulationDiverged) -> None:
         members = list(error.members) or list(range(self.simulator.members))
         self.simulator.reset_members(members)
         self.resets += len(members)
-        numbers = [self.first_member + m for m in members]
-        which = (self.name if self.simulator.members == 1
-                 else f'{self.name} {numbers}')
+        which, numbers = self._which(members)
         self.events.append(TwinEvent(
-            'diverged', 'error', self.simulator.time_s,
+            'diverged', self.level, self.simulator.time_s,
             f'{which} diverged ({error}); restarted from a safe state at the same depth',
             {'members': ' '.join(map(str, numbers)), 'time_s': f'{error.time_s:.6g}'}))
+
+    def _contain(self, reasons: dict[int, str], before) -> None:
+        """Put the members that broke a bound back to their last good state and restart
+        them from a safe state there (or keep the last good state if that breaks too)."""
+        breached = np.zeros(self.simulator.members, dtype=bool)
+        breached[list(reasons)] = True
+        self._consecutive_breaches = np.where(breached, self._consecutive_breaches + 1, 0)
+        if not reasons:
+            return
+        members = sorted(reasons)
+        state = self.simulator.state
+        self._restore(members, before)
+        self.simulator.reset_members(members)
+        still = [m for m in self.guard.check(self.simulator) if m in reasons]
+        if still:                                 # even the safe state is implausible
+            self._restore(still, before)
+            self.simulator.last = self.simulator._evaluate(state)
+        self.resets += len(members)
+        self.breaches += len(members)
+        for member in members:
+            which, numbers = self._which([member])
+            kept = ('kept its last good state (the safe state is implausible too)'
+                    if member in still else 'restarted from a safe state at its last good depth')
+            self.events.append(TwinEvent(
+                'implausible', self.level, state.time_s,
+                f'{which}: {reasons[member]}; {kept}',
+                {'members': str(numbers[0]), 'reason': reasons[member],
+                 'time_s': f'{state.time_s:.6g}'}))
+        worst = int(np.max(self._consecutive_breaches))
+        if worst >= MAX_CONSECUTIVE_FAILURES:
+            member = int(np.argmax(self._consecutive_breaches))
+            which, _ = self._which([member])
+            raise TwinStalled(f'{which} broke a physical bound in {worst} steps in a row, even '
+                              f'from a safe state, at t = {state.time_s:.6g} s '
+                              f'({reasons[member]}): the model cannot represent this '
+                              f'configuration or these commands')
+
+    def _restore(self, members, before) -> None:
+        state = self.simulator.state
+        for name in ('q', 'q_rate', 'q_acceleration'):
+            getattr(state, name)[members] = getattr(before, name)[members]
 
     def take_events(self) -> list[TwinEvent]:
         events, self.events = self.events, []

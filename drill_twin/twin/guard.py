@@ -1,0 +1,199 @@
+"""The state guard: every step of every member checked against physics, ROS-free.
+
+A step the integrator accepts can still be nonsense: a hook load far above the string's
+weight flings the string out of the hole, a bit-rock law with absurd constants spins the bit
+at 10 000 rad/s. After every step :class:`StateGuard` checks each member against bounds
+derived from the configuration (:class:`~drill_twin.twin.envelope.StringEnvelope`), with the
+multiples stated here:
+
+- the state (q, q', q'') and the bit's quantities are finite;
+- the bit is in the hole: not above the surface (depth >= 0) and not deeper than the hole's
+  bottom plus the contact penetration WOB_bound / k_ip (the hole is the simulator's
+  ``hole_depth_m`` where it has one, else the deepest the bit has been);
+- |ROP| and the top's axial speed <= SPEED_MULTIPLE x the block speed;
+- |bit speed| <= SPEED_MULTIPLE x max(the envelope's top-drive speed, the top speed now)
+  (stick-slip peaks reach two to three times the top speed);
+- |WOB| <= FORCE_MULTIPLE x (WOB_max + Z v_block): the envelope's weight on bit plus the
+  impact of a landing at block speed on the bottom section's impedance Z;
+- |TOB| <= FORCE_MULTIPLE x the largest torque of the bit-rock law over the envelope;
+- with wall contact modelled, every node's radial displacement <= its clearance plus the
+  penetration PENETRATION_MULTIPLE x m_e c Omega^2 / k_ip (the wall force that holds the
+  heaviest element whirling at the clearance at the envelope's top speed);
+- no energy without a source: the kinetic energy of the reduced coordinates (motion relative
+  to the driven rotation) <= what the hook and the top drive could have given the string,
+  every point moving at the speed bounds above: 1/2 M v^2 axially, 1/2 J w^2 in torsion
+  and 1/2 M (c w)^2 in lateral whirl.
+
+:meth:`StateGuard.check` returns the breaching members and why; the caller
+(:class:`~drill_twin.twin.stepping.GuardedSimulator`) treats them as diverged.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from drill_twin.twin.envelope import (ENVELOPE_TOP_DRIVE_SPEED_MAX_RAD_PER_S,
+                                      PLAUSIBLE_BLOCK_SPEED_M_PER_S, StringEnvelope,
+                                      largest_torque_on_bit_nm)
+
+SPEED_MULTIPLE = 5.0
+"""Axial and rotation speeds: multiples of the block speed and of the top-drive speed."""
+FORCE_MULTIPLE = 3.0
+"""WOB and TOB: multiples of the envelope's largest values (landing impact included)."""
+PENETRATION_MULTIPLE = 10.0
+"""Wall penetration: multiple of the penetration of a whirling element."""
+TORQUE_FLOOR_NM = 1.0e3
+"""TOB scale when the law gives (almost) none, e.g. with the bit-rock law switched off."""
+
+
+class StateGuard:
+    """Bounds of one string's members (see the module docstring).
+
+    Args:
+        system: the reduced system the simulator steps.
+        law: its bit-rock law (for the torque scale).
+        envelope: the string's scales (derived from ``system`` if None).
+    """
+
+    def __init__(self, system, law, envelope: StringEnvelope | None = None):
+        config = system.model.config
+        self.system = system
+        self.envelope = envelope or StringEnvelope.of(system)
+        e = self.envelope
+        block = PLAUSIBLE_BLOCK_SPEED_M_PER_S
+        self.axial_speed_max_m_per_s = SPEED_MULTIPLE * block
+        self.weight_on_bit_max_n = FORCE_MULTIPLE * (e.weight_on_bit_max_n
+                                                     + e.axial_impedance_n_s_per_m * block)
+        self.torque_on_bit_max_nm = FORCE_MULTIPLE * max(
+            largest_torque_on_bit_nm(law, ENVELOPE_TOP_DRIVE_SPEED_MAX_RAD_PER_S,
+                                     e.weight_on_bit_max_n), TORQUE_FLOOR_NM)
+        stiffness = config.borehole.contact_stiffness_n_per_m
+        self.bit_penetration_m = self.weight_on_bit_max_n / stiffness
+        self.lateral = config.physics.contact
+        mesh = system.model.mesh
+        element_mass = mesh.density_kg_per_m3 * mesh.area_m2 * mesh.length_m
+        node_mass = np.zeros(mesh.n_nodes)
+        node_mass[:-1] += 0.5 * element_mass
+        node_mass[1:] += 0.5 * element_mass
+        self.clearance_m = system.clearance_m
+        whirl = (node_mass * np.maximum(self.clearance_m, 0.0)
+                 * ENVELOPE_TOP_DRIVE_SPEED_MAX_RAD_PER_S ** 2)
+        self.lateral_max_m = self.clearance_m + PENETRATION_MULTIPLE * np.max(whirl) / stiffness
+        self.string_length_m = mesh.total_length_m
+        self._clearance_max_m = float(np.max(self.clearance_m))
+        axial = system.blocks['axial']
+        self._bit_row = axial.shapes[system.bit_node]
+        self._axial = axial.columns
+        self._top_row = system.top_axial_row[axial.columns]
+        nodes = system.n_nodes
+        # v and w of every node from the bending blocks alone (rows: v then theta_z, w then
+        # theta_y).
+        self._bending = [(system.blocks[name].columns,
+                          np.ascontiguousarray(system.blocks[name].shapes[:nodes].T))
+                         for name in ('bending_y', 'bending_z')]
+        self._mass = None if np.array_equal(system.mass, np.eye(system.size)) else system.mass
+        self._deepest = None
+
+    def rotation_speed_max(self, top_speed_rad_per_s: float) -> float:
+        """Bound of |bit speed| (rad/s) at a top-drive speed."""
+        return SPEED_MULTIPLE * max(ENVELOPE_TOP_DRIVE_SPEED_MAX_RAD_PER_S,
+                                    abs(top_speed_rad_per_s))
+
+    def kinetic_energy_max(self, top_speed_rad_per_s: float) -> float:
+        """Bound of the reduced coordinates' kinetic energy (J) at a top-drive speed."""
+        e = self.envelope
+        omega = self.rotation_speed_max(top_speed_rad_per_s)
+        return 0.5 * (e.string_mass_kg * self.axial_speed_max_m_per_s ** 2
+                      + e.polar_inertia_kg_m2 * omega ** 2
+                      + e.string_mass_kg * (self._clearance_max_m * omega) ** 2)
+
+    def check(self, simulator) -> dict[int, str]:
+        """{member: why} for every member of ``simulator`` whose state breaks a bound."""
+        state, forces = simulator.state, simulator.last
+        with np.errstate(invalid='ignore', over='ignore'):
+            values = self._measure(simulator, state, forces)
+            bad = ~values['finite']
+            for name, bound in self._bounds(state.top_speed_rad_per_s).items():
+                bad |= np.abs(values[name]) > bound
+            bad |= values['depth'] < 0.0
+            bad |= values['depth'] > values['hole'] + self.bit_penetration_m
+            if self.lateral:
+                bad |= np.any(values['radius'] > self.lateral_max_m, axis=1)
+            reasons = {int(k): self._reason(k, values, state.top_speed_rad_per_s)
+                       for k in np.flatnonzero(bad)}
+        self._remember(values['depth'], reasons)
+        return reasons
+
+    def _bounds(self, top_speed_rad_per_s: float) -> dict[str, float]:
+        """The speed, force and energy bounds at a top-drive speed, by measured quantity."""
+        axial = self.axial_speed_max_m_per_s
+        return {'rop': axial, 'top_axial_speed': axial,
+                'bit_speed': self.rotation_speed_max(top_speed_rad_per_s),
+                'wob': self.weight_on_bit_max_n, 'tob': self.torque_on_bit_max_nm,
+                'kinetic_energy': self.kinetic_energy_max(top_speed_rad_per_s)}
+
+    def _measure(self, simulator, state, forces) -> dict[str, np.ndarray]:
+        """The checked quantities of every member, shape (m,) ((m, n_nodes) for radius)."""
+        finite = (np.isfinite(state.q).all(axis=1) & np.isfinite(state.q_rate).all(axis=1)
+                  & np.isfinite(state.q_acceleration).all(axis=1))
+        rop, omega = forces.rop_m_per_s, forces.bit_speed_rad_per_s
+        wob, tob = forces.weight_on_bit_n, forces.torque_on_bit_nm
+        finite &= np.isfinite(rop) & np.isfinite(omega) & np.isfinite(wob) & np.isfinite(tob)
+        q = np.where(finite[:, None], state.q, 0.0)
+        rate = np.where(finite[:, None], state.q_rate, 0.0)
+        depth = self.string_length_m + q[:, self._axial] @ self._bit_row
+        values = {'finite': finite, 'depth': depth, 'hole': self._hole_depth(simulator, depth),
+                  'rop': rop, 'top_axial_speed': rate[:, self._axial] @ self._top_row,
+                  'bit_speed': omega, 'wob': wob, 'tob': tob,
+                  'kinetic_energy': 0.5 * np.sum(
+                      (rate if self._mass is None else rate @ self._mass) * rate, axis=1)}
+        if self.lateral:
+            (y_columns, y_rows), (z_columns, z_rows) = self._bending
+            values['radius'] = np.hypot(q[:, y_columns] @ y_rows, q[:, z_columns] @ z_rows)
+        return values
+
+    def _reason(self, k: int, values: dict, top_speed_rad_per_s: float) -> str:
+        """Why member k breaks a bound (the first bound it breaks), one phrase."""
+        if not values['finite'][k]:
+            return 'the state is not finite'
+        depth, hole = values['depth'][k], values['hole'][k]
+        if depth < 0.0:
+            return f'the bit is above the surface (depth {depth:.4g} m)'
+        if depth > hole + self.bit_penetration_m:
+            return (f'the bit is {depth - hole:.3g} m below the bottom of the hole (contact '
+                    f'penetration at most {self.bit_penetration_m:.3g} m)')
+        words = {'rop': ('ROP', 'm/s'), 'top_axial_speed': ("the top's axial speed", 'm/s'),
+                 'bit_speed': ('bit speed', 'rad/s'), 'wob': ('WOB', 'N'),
+                 'tob': ('TOB', 'N m'), 'kinetic_energy': ('kinetic energy', 'J')}
+        for name, bound in self._bounds(top_speed_rad_per_s).items():
+            value = float(values[name][k])
+            if abs(value) > bound:
+                what, unit = words[name]
+                if name == 'kinetic_energy':
+                    return (f'kinetic energy {value:.3g} J exceeds what the hook and the top '
+                            f'drive could have supplied ({bound:.3g} J)')
+                return f'{what} {value:.4g} {unit} is beyond +-{bound:.4g} {unit}'
+        radius = values['radius'][k]
+        node = int(np.argmax(radius - self.lateral_max_m))
+        return (f'a lateral displacement of {radius[node]:.3g} m at node {node} exceeds the '
+                f'clearance plus contact penetration ({self.lateral_max_m[node]:.3g} m)')
+
+    def _hole_depth(self, simulator, depth):
+        """The hole's depth per member (m): the simulator's, or the deepest plausible bit
+        position so far (today's model drills wherever the bit is: the hole is where the bit
+        has been deepest)."""
+        hole = getattr(simulator, 'hole_depth_m', None)
+        if hole is not None:
+            return np.broadcast_to(np.asarray(hole, dtype=float), depth.shape)
+        if self._deepest is None or self._deepest.shape != depth.shape:
+            self._deepest = np.full(depth.shape, -np.inf)
+        return np.fmax(self._deepest, depth)
+
+    def _remember(self, depth, reasons) -> None:
+        """Deepen the remembered hole with the members that passed."""
+        if self._deepest is None or self._deepest.shape != depth.shape:
+            return
+        deeper = np.fmax(self._deepest, depth)
+        if reasons:
+            failed = list(reasons)
+            deeper[failed] = self._deepest[failed]
+        self._deepest = deeper

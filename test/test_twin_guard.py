@@ -1,0 +1,241 @@
+"""Plausibility: the hook-load range derived from the string, the state guard, honest KPIs.
+
+Bounds are checked against closed forms of the string (weights, masses, drag) and against
+the configurations and commands that produced nonsense before (issue 9): a 3 MN hook load on a
+1.16 MN string, bit_rock.a1_m_per_s = 10, bit_rock.a2_m_per_n_s = 1.0.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from threadpoolctl import threadpool_limits
+
+from drill_twin.config import ConfigError, load_config
+from drill_twin.dynamics import kpi
+from drill_twin.dynamics.simulator import Simulator
+from drill_twin.twin.engine import CommandRejected, EnsembleSettings, TwinEngine
+from drill_twin.twin.envelope import (ENVELOPE_WEIGHT_ON_BIT_MAX_N,
+                                      PLAUSIBLE_BLOCK_SPEED_M_PER_S, StringEnvelope)
+from drill_twin.twin.guard import StateGuard
+
+TWIN_STEP = ['integration.time_step_s=0.01']
+
+
+@pytest.fixture(scope='module')
+def config():
+    return load_config(None, TWIN_STEP)
+
+
+def _engine(config, members=0, seed=3):
+    with threadpool_limits(limits=1, user_api='blas'):
+        return TwinEngine(config, EnsembleSettings(members=members, dispersion=0.01, seed=seed))
+
+
+def _advance(engine, steps):
+    with threadpool_limits(limits=1, user_api='blas'):
+        return [engine.advance(1) for _ in range(steps)]
+
+
+# -- the string's envelope, against closed forms ---------------------------------------------
+
+def test_envelope_of_a_dry_string_is_its_weight_mass_and_drag():
+    """Without fluid the string's weight is g sum(rho A L), its axial mass sum(rho A L) and
+    its drag alpha times that mass; the BHA (the collars) weighs g rho A_c L_c."""
+    config = load_config(None, TWIN_STEP + ['physics.fluid=false'])
+    envelope = StringEnvelope.of(Simulator(config).system)
+    masses = [s.length_m * s.density_kg_per_m3 * math.pi / 4
+              * (s.outer_diameter_m ** 2 - s.inner_diameter_m ** 2) for s in config.sections]
+    g = config.gravity_m_per_s2
+    assert envelope.string_weight_n == pytest.approx(g * sum(masses), rel=1e-9)
+    assert envelope.string_mass_kg == pytest.approx(sum(masses), rel=1e-9)
+    alpha = config.damping.mass_coefficient_per_s
+    assert envelope.axial_drag_n_s_per_m == pytest.approx(alpha * sum(masses), rel=1e-9)
+    assert envelope.bha_weight_n == pytest.approx(g * masses[-1], rel=1e-6)
+    assert envelope.weight_on_bit_max_n == ENVELOPE_WEIGHT_ON_BIT_MAX_N     # < the BHA
+    assert envelope.hook_load_max_n - envelope.string_weight_n == pytest.approx(
+        alpha * sum(masses) * PLAUSIBLE_BLOCK_SPEED_M_PER_S, rel=1e-9)
+
+
+def test_a_short_bha_caps_the_weight_on_bit():
+    """50 m of collars weigh about 140 kN: the neutral point leaves the BHA above that."""
+    config = load_config(None, TWIN_STEP + ['physics.fluid=false',
+                                            'sections.drill_collar.length_m=50',
+                                            'sections.drill_collar.elements=6',
+                                            'output.stations_m=[700.0]',
+                                            'reduced_basis.lateral_modes=40'])
+    envelope = StringEnvelope.of(Simulator(config).system)
+    collar = config.sections[-1]
+    weight = (config.gravity_m_per_s2 * collar.length_m * collar.density_kg_per_m3 * math.pi / 4
+              * (collar.outer_diameter_m ** 2 - collar.inner_diameter_m ** 2))
+    assert envelope.weight_on_bit_max_n == pytest.approx(weight, rel=1e-6)
+
+
+def test_the_weight_is_the_hook_load_of_zero_weight_on_bit(config):
+    """The stationary WOB is f_c + (H - H_S) (README): zero at H = W = H_S - f_c; the paper's
+    string weighs 1.16 MN as the model counts it (steel and fluid)."""
+    simulator = Simulator(config)
+    prestress = simulator.system.model.prestress
+    envelope = StringEnvelope.of(simulator.system)
+    assert prestress.static_weight_on_bit_n + (envelope.string_weight_n
+                                               - prestress.hook_load_n) == pytest.approx(0.0)
+    assert envelope.string_weight_n == pytest.approx(1.163e6, rel=1e-3)
+
+
+# -- the command door ------------------------------------------------------------------------
+
+def test_hook_loads_the_model_cannot_represent_are_refused(config):
+    engine = _engine(config)
+    envelope = engine.envelope
+    before = engine.hook_load_command
+    with pytest.raises(CommandRejected, match='faster than a block moves') as caught:
+        engine.set_hook_load(3.0e6)                 # inside the operator's 0 ... 5 MN
+    assert '3000.0 kN exceeds the string\'s weight 1163.3 kN' in str(caught.value)
+    with pytest.raises(CommandRejected, match='more than the largest weight on bit 300.0 kN'):
+        engine.set_hook_load(envelope.string_weight_n - 310e3)
+    assert engine.hook_load_command == before
+    events = engine.snapshot().events
+    assert [e.kind for e in events] == ['command_rejected'] * 2
+    assert all('previous command stays' in e.message for e in events)
+    # The edges are accepted: the bit just off the rock, and WOB 300 kN.
+    engine.set_hook_load(envelope.hook_load_max_n)
+    engine.set_hook_load(envelope.string_weight_n - ENVELOPE_WEIGHT_ON_BIT_MAX_N + 1.0)
+    assert engine.rejected_commands == 2 and engine.commands_received == 4
+
+
+def test_the_highest_hook_load_lifts_the_string_no_faster_than_a_block(config):
+    """At the largest accepted hook load the string rises at most at the block speed: the
+    excess over the weight balanced by the axial drag (terminal speed dH / C = v_block)."""
+    engine = _engine(config)
+    envelope = engine.envelope
+    engine.set_hook_load(envelope.hook_load_max_n)
+    engine.kpi_window_s = 1.0
+    snapshots = _advance(engine, 300)
+    rop = np.array([s.bit.rop_m_per_s for s in snapshots])
+    assert rop[-1] < 0                                        # lifted: rising
+    assert np.all(-rop < PLAUSIBLE_BLOCK_SPEED_M_PER_S)
+    assert not any(e.kind in ('implausible', 'diverged') for s in snapshots for e in s.events)
+    # Off the rock no rock is cut: the MSE is not computable (not 0, not a number), the
+    # stick-slip severity and the (negative) ROP still are.
+    last = snapshots[-1]
+    assert last.mse_pa is None
+    assert last.rop_m_per_h is not None and last.rop_m_per_h < 0
+    assert last.stick_slip_severity is not None and last.stick_slip_severity >= 0
+
+
+# -- the state guard -------------------------------------------------------------------------
+
+def test_a_hook_load_past_the_door_trips_the_guard_and_nothing_implausible_comes_out(config):
+    """3 MN sent straight to the simulator (as if the door were open): the mean model's
+    steps break the speed bounds; each breach is an ERROR event, the mean model goes back to
+    its last good state and restarts there; every snapshot stays in the hole at plausible
+    speeds (before the guard the bit left the hole upwards at hundreds of m/s)."""
+    engine = _engine(config)
+    guard = engine._mean.guard
+    engine.simulator.set_hook_load(3.0e6)
+    snapshots = _advance(engine, 100)
+    breaches = [e for s in snapshots for e in s.events if e.kind == 'implausible']
+    assert breaches and all(e.level == 'error' for e in breaches)
+    assert 'the mean model: ' in breaches[0].message and 'beyond' in breaches[0].message
+    for s in snapshots:
+        assert 0 <= s.bit.depth_m <= 1600.01
+        assert abs(s.bit.rop_m_per_s) <= guard.axial_speed_max_m_per_s
+        assert abs(float(s.observation.hook_velocity_m_per_s[0])) <= guard.axial_speed_max_m_per_s
+        assert abs(s.bit.speed_rad_per_s) <= guard.rotation_speed_max(0.0)
+    health = snapshots[-1].health
+    assert health['mean_model_implausible_steps'] == len(breaches) == health['mean_model_resets']
+    assert snapshots[-1].step == 100                         # the clock went on
+
+
+@pytest.mark.parametrize('override, words', [
+    ('bit_rock.a1_m_per_s=10', 'ROP -8.712 m/s is beyond +-5 m/s'),
+    ('bit_rock.a2_m_per_n_s=1.0', 'ROP 8.718e+04 m/s is beyond +-5 m/s'),
+])
+def test_a_configuration_implausible_from_the_start_is_refused(override, words):
+    """The steady state of these bit-rock laws drills at metres or kilometres per second:
+    the engine refuses the configuration with one line instead of publishing it."""
+    config = load_config(None, TWIN_STEP + [override])
+    with pytest.raises(ConfigError) as caught:
+        TwinEngine(config, EnsembleSettings(members=0))
+    message = str(caught.value)
+    assert '\n' not in message and 'cannot be integrated' in message and words in message
+
+
+def test_an_implausible_member_is_restarted_and_the_others_go_on(config):
+    """A finite but absurd axial speed in one ensemble member (10 m/s on the rigid mode):
+    only that member is put back and restarted (a WARN), the other members and the mean
+    model are exactly as in an undisturbed twin."""
+    disturbed, clean = _engine(config, members=3), _engine(config, members=3)
+    _advance(disturbed, 20)
+    _advance(clean, 20)
+    ensemble = disturbed.ensemble_runner.simulator
+    rigid = ensemble.system.blocks['axial'].columns.start
+    shape = ensemble.system.blocks['axial'].shapes[0, 0]
+    ensemble.state.q_rate[1, rigid] = -10.0 / shape                  # member 2 rising 10 m/s
+    snapshots = _advance(disturbed, 3)                  # the ensemble is a tick behind
+    snapshot, clean_snapshot = snapshots[-1], _advance(clean, 3)[-1]
+    events = [e for s in snapshots for e in s.events if e.kind == 'implausible']
+    assert len(events) == 1 and events[0].level == 'warn'
+    assert events[0].values['members'] == '2' and 'ensemble members [2]' in events[0].message
+    assert 'restarted from a safe state' in events[0].message
+    state = ensemble.state
+    for row in (0, 2):
+        np.testing.assert_array_equal(state.q[row], clean.ensemble_runner.simulator.state.q[row])
+    assert abs(ensemble.observe().rop_m_per_s[1]) < 0.1
+    assert snapshot.bit == clean_snapshot.bit
+    assert snapshot.health['ensemble_resets'] == 1 and snapshot.health['mean_model_resets'] == 0
+
+
+def test_every_bound_of_the_guard_trips(config):
+    """Each bound on its own, on a converged state of one member: the lateral displacement
+    beyond the clearance, the bit below the bottom of the hole, the kinetic energy."""
+    simulator = Simulator(config)
+    simulator.step()
+    guard = StateGuard(simulator.system, simulator.law)
+    assert guard.check(simulator) == {}
+    system = simulator.system
+    saved = simulator.state.copy()
+
+    bending = system.blocks['bending_y']
+    nodes = system.n_nodes
+    deflection = bending.shapes[:nodes] @ saved.q[0, bending.columns]
+    mode = np.zeros(bending.columns.stop - bending.columns.start)
+    mode[0] = 1.0
+    shape = bending.shapes[:nodes] @ mode
+    node = int(np.argmax(np.abs(shape)))
+    target = 2.0 * guard.lateral_max_m[node]
+    simulator.state.q[0, bending.columns.start] += (target - deflection[node]) / shape[node]
+    (reason,) = guard.check(simulator).values()
+    assert 'lateral displacement' in reason and 'clearance plus contact penetration' in reason
+
+    simulator.state = saved.copy()
+    simulator.hole_depth_m = np.array([1599.0])      # a hole shallower than the bit
+    (reason,) = guard.check(simulator).values()
+    assert 'below the bottom of the hole' in reason
+    del simulator.hole_depth_m
+
+    torsion = system.blocks['torsional'].columns
+    simulator.state.q_rate[0, torsion] = 0.0
+    simulator.state.q_rate[0, torsion.start] = 1.01 * math.sqrt(
+        2 * guard.kinetic_energy_max(simulator.state.top_speed_rad_per_s))
+    reasons = guard.check(simulator)
+    assert 'exceeds what the hook and the top drive could have supplied' in reasons[0]
+
+
+# -- KPIs: finite or nothing -----------------------------------------------------------------
+
+def test_kpis_are_none_until_computable(config):
+    engine = _engine(config)
+    first = _advance(engine, 1)[0]
+    assert (first.stick_slip_severity, first.mse_pa, first.rop_m_per_h) == (None, None, None)
+    second = _advance(engine, 1)[0]
+    assert all(isinstance(v, float) and math.isfinite(v)
+               for v in (second.stick_slip_severity, second.mse_pa, second.rop_m_per_h))
+
+
+def test_stick_slip_severity_is_undefined_without_forward_rotation():
+    """A bit turning backwards on average has no stick-slip severity (before: -60.8)."""
+    assert math.isnan(kpi.stick_slip_severity(np.array([-1.0, -3.0])))
+    assert math.isnan(kpi.stick_slip_severity(np.array([0.0, 0.0])))
+    assert kpi.stick_slip_severity(np.array([1.0, 3.0])) == pytest.approx(0.5)
