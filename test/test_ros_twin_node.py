@@ -570,8 +570,10 @@ def test_log_is_complete_and_equal_to_what_was_heard(recorded):
     path, received = recorded['log'], recorded['received']
     assert reader.is_complete(path)
     logged = defaultdict(list)
-    for item in read_ros2_messages(str(path)):
-        logged[item.channel.topic].append((item.log_time_ns, item.ros_msg))
+    from drill_twin.recording import reader
+    for split in reader.log_files(path):               # the bag's MCAP files
+        for item in read_ros2_messages(str(split)):
+            logged[item.channel.topic].append((item.log_time_ns, item.ros_msg))
     expected_topics = set(recorded['twin'].node._published_topics()) | {
         itf.CMD_TOP_DRIVE_SPEED, itf.CMD_HOOK_LOAD, itf.ROSOUT}
     assert set(logged) == expected_topics
@@ -635,15 +637,15 @@ def _rrd_entities(rrd: Path) -> set[str]:
 
 
 def test_rerun_loads_the_log(recorded, tmp_path):
-    from drill_twin.recording.rerun_view import joint_entity, save_rrd
+    from drill_twin.recording.rerun_view import save_rrd
 
     rrd = save_rrd(recorded['log'], tmp_path / 'run.rrd')
     entities = _rrd_entities(rrd)
-    expected = set(recorded['twin'].node._published_topics()) | {
-        itf.CMD_TOP_DRIVE_SPEED, itf.CMD_HOOK_LOAD, itf.ROSOUT}
-    for topic in (itf.BIT_STATE, itf.TOP_STATE, itf.ENSEMBLE_MEAN, itf.ENSEMBLE_LOWER,
-                  itf.ENSEMBLE_UPPER):
-        expected |= {joint_entity(topic, f) for f in ('position', 'velocity', 'effort')}
+    stations = recorded['twin'].node.stations_m
+    expected = {'/bit/speed', '/bit/wob', '/top/hook_load', '/kpi/ssi', '/ensemble/speed/band',
+                '/ensemble/speed/mean', '/along/contact_force', '/contact/max_force',
+                '/diagnostics/real_time_factor', '/rosout'}
+    expected |= {f'/lateral/{itf.station_name(x)}/orbit' for x in stations}
     assert expected <= entities, sorted(expected - entities)
 
 

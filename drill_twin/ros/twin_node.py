@@ -242,9 +242,8 @@ class TwinNode(Node):
             '; stopping (on_log_error: exit)' if stop
             else '; the twin runs on without a log (on_log_error: continue)')
         self._report('error', self.log_error)
-        self._publish(itf.DIAGNOSTICS, messages.health(
-            {'log': 'stopped', 'log_error': self.log_error}, 'error',
-            'the log stopped: ' + self.log_error, now), now)
+        self.monitor.note('error', 'log', 'the log stopped: ' + self.log_error)
+        self._publish_health()                      # at once, not at the next period
         if stop:
             self.failed = True
             self.done.set_result(False)
@@ -416,7 +415,8 @@ class TwinNode(Node):
                   'commands_received': self.engine.commands_received,
                   'commands_dropped': self.commands_dropped,
                   'commands_superseded': self.commands_superseded,
-                  'log': str(self.log.path) if logging else 'none'}
+                  'log': str(self.log.path) if logging else (
+                      'stopped' if self.log_error else 'none')}
         for key, scale, unit in (('tick_wall_time_s', 1e3, 'tick_time_ms'),
                                  ('tick_wall_time_max_s', 1e3, 'tick_time_max_ms'),
                                  ('ensemble_tick_wall_time_s', 1e3, 'ensemble_tick_time_ms')):

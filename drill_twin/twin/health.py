@@ -64,10 +64,11 @@ class HealthMonitor:
         self._details: dict[str, str] = {}
 
     def note(self, level: str, key: str, text: str) -> None:
-        """A problem of this period (the worst level and the latest text per key)."""
+        """A problem of this period: per key, the worst level with its text (the latest
+        text among notes of that level)."""
         previous = self._notes.get(key)
         if previous is not None and _rank(previous[0]) > _rank(level):
-            level = previous[0]
+            return
         self._notes[key] = (level, text)
 
     def detail(self, counter: str, text: str) -> None:
