@@ -30,6 +30,11 @@ def add_parser(subparsers) -> None:
                         help='stop after S simulated seconds (default: run until stopped)')
     parser.add_argument('--log-dir', metavar='DIR', help='where the MCAP log goes (default runs/)')
     parser.add_argument('--no-log', action='store_true', help='do not record a log')
+    parser.add_argument('--view', action='store_true',
+                        help='stream to a rerun viewer on 127.0.0.1 while the twin runs '
+                             '(the tabs of drill-twin view)')
+    parser.add_argument('--web', action='store_true',
+                        help="with --view: serve rerun's web viewer instead of a window")
     parser.add_argument('--fast', action='store_true',
                         help='run as fast as possible and publish /clock')
     parser.add_argument('--ensemble', type=int, metavar='N', help='ensemble members (default 16)')
@@ -112,9 +117,17 @@ def run(args: argparse.Namespace) -> int:
     try:
         startup_signals.arm()         # a SIGINT or SIGTERM since start-up stops here
         ros = ros_arguments(args)
+        if args.web and not args.view:
+            raise UsageError('--web: only with --view (the live viewer)')
+        if args.view and not args.web:
+            from drill_twin.recording.live_view import NO_DISPLAY_HINT
+            from drill_twin.recording.rerun_view import has_display
+            if not has_display():
+                raise UsageError(NO_DISPLAY_HINT)
         checked_start(ros)
         from drill_twin.ros.twin_node import run as run_node
 
-        return run_node(['drill-twin'] + ros)
+        return run_node(['drill-twin'] + ros,
+                        view=('web' if args.web else 'native') if args.view else None)
     except KeyboardInterrupt:
         return 0                      # stopped while starting: nothing was opened yet

@@ -204,6 +204,10 @@ class TwinNode(Node):
         return topics
 
     log_error: str | None = None
+    live_view = None
+    """A :class:`~drill_twin.recording.live_view.LiveView` streaming to rerun, or None."""
+    status = None
+    """A :class:`~drill_twin.cli.console.StatusPrinter` for a terminal, or None."""
     """Why the log stopped or could not be opened (None while it runs, or without a log)."""
 
     def _open_log(self, p):
@@ -272,6 +276,10 @@ class TwinNode(Node):
         self._pending_commands.add(topic)
         if self.log:
             self.log.write(topic, message, self.twin_time_ns())    # takes effect at this time
+        if self.live_view:
+            key = ('top_drive_speed_rad_per_s' if topic == itf.CMD_TOP_DRIVE_SPEED
+                   else 'hook_load_n')
+            self.live_view.command(self.engine.time_s, **{key: message.data})
 
     def _count_dropped(self, topic: str, info) -> None:
         """Commands lost on the way: gaps in the publisher's sequence numbers (counted while
@@ -300,6 +308,10 @@ class TwinNode(Node):
             self._stalled(error)
             return
         self.ticks += 1
+        if self.live_view:
+            self.live_view.update(snapshot)
+        if self.status:
+            self.status.update(snapshot)
         self._advanced_at = time.monotonic()
         self._pending_commands.clear()
         self._latest_health = snapshot.health
@@ -444,6 +456,8 @@ class TwinNode(Node):
         if self.log:
             now = self.twin_time_ns()
             self.log.write(itf.ROSOUT, messages.log(level, text, self.get_name(), now), now)
+        if self.live_view:
+            self.live_view.log_line(self.engine.time_s, text, level)
 
     # -- parameters at run time ----------------------------------------------------------
     def _on_set_parameters(self, parameters) -> SetParametersResult:
@@ -477,18 +491,22 @@ class TwinNode(Node):
                 self.get_logger().error(self.log.error)
 
 
-def run(ros_args: list[str]) -> int:
+def run(ros_args: list[str], view: str | None = None, console: bool | None = None) -> int:
     """Run the twin until ``duration_s`` or a signal (SIGINT, SIGTERM); return the status.
+
+    ``view``: 'native' or 'web' streams the twin to a rerun viewer on 127.0.0.1 (the tabs of
+    ``drill-twin view``); ``console``: a status line once a second and a summary at exit on
+    stderr (default: when stderr is a terminal).
 
     BLAS is single-threaded for the node's whole life: the model's matrices are small (threads
     cost more than they save on this 2-core class of machine), and a run is then reproduced
     bit for bit by ``drill-twin replay --resimulate``.
     """
     with threadpool_limits(limits=1, user_api='blas'):
-        return _run(ros_args)
+        return _run(ros_args, view, sys.stderr.isatty() if console is None else console)
 
 
-def _run(ros_args: list[str]) -> int:
+def _run(ros_args: list[str], view: str | None = None, console: bool = False) -> int:
     from rclpy.exceptions import ParameterException
 
     def _first_line(error):
@@ -497,6 +515,7 @@ def _run(ros_args: list[str]) -> int:
     node = None
     executor = None
     status = 0
+    interrupted = False
     try:
         try:
             rclpy.init(args=ros_args)
@@ -505,12 +524,19 @@ def _run(ros_args: list[str]) -> int:
             return 2
         executor = SingleThreadedExecutor()
         node = TwinNode()
+        if view:
+            from drill_twin.recording.live_view import LiveView
+            node.live_view = LiveView(node.stations_m, node.config)
+            node.live_view.spawn_viewer(web=(view == 'web'))
+        if console:
+            from drill_twin.cli.console import StatusPrinter
+            node.status = StatusPrinter(sys.stderr)
         executor.add_node(node)
         executor.spin_until_future_complete(node.done)
         if node.failed:
             status = 1                                 # the model stalled (reported)
     except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        interrupted = True
     except RCLError:
         if rclpy.ok():
             raise
@@ -524,6 +550,11 @@ def _run(ros_args: list[str]) -> int:
         status = 1
     finally:
         if node is not None:
+            if node.live_view:
+                node.live_view.close()                 # the viewer keeps running for the user
+            if node.status:
+                node.status.finish(log_path=str(node.log.path) if node.log else None,
+                                   reason='interrupted' if interrupted else 'stopped')
             node.close()
             node.destroy_node()
         if executor is not None:
