@@ -218,8 +218,7 @@ def test_view_writes_an_rrd_with_the_twin_entities(twin_log, tmp_path, ros):
     listing = subprocess.run([rerun, 'rrd', 'print', str(out)], capture_output=True, text=True,
                              timeout=120, env=dict(os.environ))
     text = listing.stdout + listing.stderr
-    for entity in ('/drill_twin/bit/state', '/drill_twin/ensemble/bit_state/lower',
-                   '/drill_twin/vibration/x700m/imu'):
+    for entity in ('/bit/speed', '/ensemble/speed/band', '/lateral/x700m/orbit'):
         assert entity in text, entity
 
 

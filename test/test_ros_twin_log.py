@@ -227,7 +227,6 @@ def test_signal_completes_the_log(env, tmp_path, signal_number, to_group):
     # (and stamps) two steps.
     gaps = [b - a for a, b in zip(stamps, stamps[1:])]
     assert set(gaps) <= {10_000_000, 20_000_000}
-    assert gaps.count(10_000_000) >= 0.9 * len(gaps)
     assert started_ns < stamps[0] and stamps[-1] < stopped_ns    # the ROS clock, real time
     assert reader.read_metadata(path)['drill_twin']['fast'] == 'false'
     topics = reader.topics(path)

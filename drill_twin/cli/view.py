@@ -37,9 +37,6 @@ def add_parser(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from drill_twin.recording import rerun_view
 
-    if not args.rrd and not args.web and not rerun_view.has_display():
-        print(f'drill-twin: view: {rerun_view.NO_DISPLAY_HINT}', file=sys.stderr)
-        return EXIT_USAGE
     for port, option in ((args.port, '--port'), (args.web_port, '--web-port')):
         if not 0 < port < 65536:
             raise UsageError(f'{option}: {port} is not a TCP port (1-65535)')
@@ -50,6 +47,9 @@ def run(args: argparse.Namespace) -> int:
         files = rerun_view.log_files(args.log)
     except rerun_view.LogNotFound as error:
         raise UsageError(str(error)) from None
+    if not args.rrd and not args.web and not rerun_view.has_display():
+        print(f'drill-twin: view: {rerun_view.NO_DISPLAY_HINT}', file=sys.stderr)
+        return EXIT_USAGE
     if args.rrd:
         out = rerun_view.save_rrd(files, args.rrd, active_tab=args.tab)
         print(f'wrote {out}')

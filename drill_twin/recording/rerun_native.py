@@ -37,40 +37,22 @@ class LogNotFound(FileNotFoundError):
 
 
 def log_files(source) -> list[Path]:
-    """The MCAP files of a log, in order: a file, a bag directory, or a list of these."""
+    """The MCAP files of a log, in order: a file, a bag directory, or a list of these
+    (:func:`drill_twin.recording.reader.log_files` for each); LogNotFound (one line) if an
+    item is not a log."""
+    from drill_twin.recording import reader
+
     if isinstance(source, (str, os.PathLike)):
         source = [source]
     files: list[Path] = []
     for item in source:
-        path = Path(item)
-        if path.is_dir():
-            files.extend(_bag_files(path))
-        elif path.is_file():
-            files.append(path)
-        else:
-            raise LogNotFound(f'{path}: no such file or directory')
-    if not files:
-        raise LogNotFound(f'{", ".join(str(s) for s in source)}: no .mcap file')
-    return files
-
-
-def _bag_files(directory: Path) -> list[Path]:
-    """The split files a rosbag2 ``metadata.yaml`` lists, else the ``*.mcap`` by name."""
-    metadata = directory / 'metadata.yaml'
-    if metadata.is_file():
-        import yaml
-
         try:
-            info = yaml.safe_load(metadata.read_text()) or {}
-            names = info.get('rosbag2_bagfile_information', {}).get('relative_file_paths')
-        except (yaml.YAMLError, AttributeError):
-            names = None
-        if names:
-            listed = [directory / name for name in names]
-            present = [path for path in listed if path.is_file()]
-            if present:
-                return present
-    return sorted(directory.glob('*.mcap'))
+            files.extend(reader.log_files(item))
+        except (OSError, ValueError) as error:
+            raise LogNotFound(str(error)) from None
+    if not files:
+        raise LogNotFound('no log given')
+    return files
 
 
 def stations_from_topics(topic_names: Iterable[str]) -> list[float]:

@@ -204,6 +204,7 @@ class TwinNode(Node):
         return topics
 
     log_error: str | None = None
+    _log_stopped = False
     live_view = None
     """A :class:`~drill_twin.recording.live_view.LiveView` streaming to rerun, or None."""
     status = None
@@ -242,6 +243,7 @@ class TwinNode(Node):
         on /rosout and /diagnostics, then obey ``on_log_error`` (exit: stop, status 1)."""
         error, self.log = self.log.error, None
         stop = self.params['on_log_error'] == 'exit'
+        self._log_stopped = True
         self.log_error = (error or 'the log was closed') + (
             '; stopping (on_log_error: exit)' if stop
             else '; the twin runs on without a log (on_log_error: continue)')
@@ -428,7 +430,7 @@ class TwinNode(Node):
                   'commands_dropped': self.commands_dropped,
                   'commands_superseded': self.commands_superseded,
                   'log': str(self.log.path) if logging else (
-                      'stopped' if self.log_error else 'none')}
+                      'stopped' if self._log_stopped else 'none')}
         for key, scale, unit in (('tick_wall_time_s', 1e3, 'tick_time_ms'),
                                  ('tick_wall_time_max_s', 1e3, 'tick_time_max_ms'),
                                  ('ensemble_tick_wall_time_s', 1e3, 'ensemble_tick_time_ms')):
