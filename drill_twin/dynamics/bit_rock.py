@@ -126,6 +126,15 @@ class BitRockLaw:
         to the force between f_ref and lift-off (f = 0), see ``torque_of_force``."""
         return np.minimum(self.threshold_force(omega), -TORQUE_FADE_FORCE_N)
 
+    @property
+    def fade_speed_rad_per_s(self) -> float:
+        """Bit speed above which the threshold force exceeds -TORQUE_FADE_FORCE_N (rad/s):
+        below it, the torque fade never acts on the cutting branch (inf if it never does)."""
+        if self.a3 <= 0:
+            return float('inf')
+        root = (self.a1 - self.a2 * TORQUE_FADE_FORCE_N) / self.a3
+        return float(np.sqrt(max(root * root - self.e * self.e, 0.0))) if root > 0 else 0.0
+
     def torque_of_force(self, force, omega, cutting_rate=None):
         """t_bit on bottom under the mean-law force f (N m):
 

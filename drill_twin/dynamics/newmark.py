@@ -487,12 +487,14 @@ class NewmarkIntegrator:
         step = _solve2(np.eye(2) - gdt * flexibility @ jacobian, g)
         x = start - step
         carried = np.stack([force, torque], axis=1) - np.einsum('mij,mj->mi', jacobian, step)
-        with np.errstate(invalid='ignore', divide='ignore', over='ignore'):
-            mean_force = law.mean(x[:, 0], x[:, 1])[0]
-            safe = (np.all(np.sign(x) == np.sign(start), axis=1)
-                    & (np.abs(step[:, 0]) <= 0.5 * np.abs(start[:, 0]))
-                    & ~lifted & (carried[:, 0] < 0) & (x[:, 0] > touch) & (x[:, 1] > 0)
-                    & (mean_force < law.fade_force(x[:, 1])))
+        safe = (np.all(np.sign(x) == np.sign(start), axis=1)
+                & (np.abs(step[:, 0]) <= 0.5 * np.abs(start[:, 0]))
+                & ~lifted & (carried[:, 0] < 0) & (x[:, 0] > touch) & (x[:, 1] > 0))
+        fast = x[:, 1] >= law.fade_speed_rad_per_s        # where the torque may fade
+        if fast.any():
+            with np.errstate(invalid='ignore', divide='ignore', over='ignore'):
+                mean_force = law.mean(x[:, 0], x[:, 1])[0]
+                safe &= ~fast | (mean_force < law.fade_force(x[:, 1]))
         solution = _BitSolution(x[:, 0], x[:, 1], carried[:, 0], carried[:, 1],
                                 np.zeros(members, bool), jacobian, np.ones(members, bool))
         if safe.all():
@@ -500,15 +502,24 @@ class NewmarkIntegrator:
         rest = np.flatnonzero(~safe)
         c = gdt * np.stack([flexibility[rest, 0, 0], flexibility[rest, 1, 1]], axis=1)
         b = linear[rest] - c * self.static_bit_force
-        sub_germ = None if germ is None else germ[rest]
-        rop, omega, f1, f2, lf, _, cut = solve_bit_equation(law, b, c, touch[rest], sub_germ,
-                                                            omega_guess=start[rest, 1])
+        # A bit that cannot reach the rock (or outruns the law's cut at zero force) at the
+        # speed it has without a rock torque is free: F = 0, omega = b2, no search.
+        free = ~(b[:, 0] > np.maximum(touch[rest], law.cutting_rate(0.0, b[:, 1])))
+        rop, omega = b[:, 0].copy(), b[:, 1].copy()
+        f1, f2 = np.zeros(rest.size), np.zeros(rest.size)
+        lf = np.ones(rest.size, dtype=bool)
+        search = np.flatnonzero(~free)
+        if search.size:
+            sub_germ = None if germ is None else germ[rest[search]]
+            found = solve_bit_equation(law, b[search], c[search], touch[rest[search]], sub_germ,
+                                       omega_guess=start[rest[search], 1])
+            for array, value in zip((rop, omega, f1, f2, lf), found):
+                array[search] = value
         self.counters.bit_law_evaluations += 1
-        with np.errstate(invalid='ignore', divide='ignore', over='ignore'):
-            _, _, _, jac = law.forces_and_jacobian(rop, omega, sub_germ)
-        cutting = (cut > touch[rest]) & ~lf & (omega > 0)
-        jac = np.where(cutting[:, None, None], jac, 0.0)
-        robust = _BitSolution(rop, omega, f1, f2, lf, jac, np.isfinite(rop) & np.isfinite(omega))
+        # The Jacobian of a guarded member is the law's at the iterate (it informs nothing).
+        jacobian[rest] = np.where(lf[:, None, None], 0.0, jacobian[rest])
+        robust = _BitSolution(rop, omega, f1, f2, lf, jacobian[rest],
+                              np.isfinite(rop) & np.isfinite(omega))
         for name in _BIT_FIELDS:
             getattr(solution, name)[rest] = getattr(robust, name)
         return solution
