@@ -20,12 +20,20 @@ The rock's law, with the hole's bottom, is a monotone graph in ROP at a given om
 
 It is parametrised by one increasing number P: P <= 0 is the free bit (ROP = rho* + P, F = 0,
 rho* = max(rho, R(0, omega))); P > 0 is on bottom with the mean force f = -P and
-ROP = max(rho, R(-P, omega)). At fixed omega the axial equation g(P) = ROP(P) - b1 - c1 F1(P)
-goes from -inf to +inf; for the mean law it is increasing (one root, in closed form, which
-is exact also at omega = 0 where Eq. 25 is singular); for a random germ its root is
-bracketed and found by the Illinois method. The torsional equation r(omega) = omega - b2 -
-c2 F2(omega) is then solved the same way: F2(0) = 0 (Z(0) = 0) and the mean torque opposes
-omega, so [0, b2] brackets a root (wider brackets are searched for random germs).
+ROP = max(rho, R(-P, omega)); every function of (P, omega) below is continuous, also at
+omega = 0 where Eq. 25 is singular (R is smooth in f and omega).
+
+At a given P the torsional equation r(omega) = omega - b2 - c2 F2(P, omega) has F2(P, 0) = 0
+(Z(0) = 0) and, for the mean law, a torque that opposes omega: [0, b2] brackets its root
+(wider brackets are searched for random germs). Its slope is 1 - c2 dF2/domega, close to 1
+(c2 ~ 6e-6 (rad/s)/(N m) at 5 ms), so that root omega(P) is unique and continuous. The axial
+equation G(P) = ROP(P, omega(P)) - b1 - c1 F1(P, omega(P)) is then continuous, negative at
+P = 0 (unless the bit is free) and -> +inf, so it has a root, bracketed and found by the
+Illinois method. For the mean law G increases (one root). A random germ with a large G12 can
+make F1 rise steeply with P near the cutting threshold (the coupling G12 sqrt(f t omega /
+ROP)); G may then have several roots, each of them a solution of the 2x2 equation. (With the
+nesting the other way round, the inner axial root would jump between them as omega moves,
+and the outer equation would have no root at the jump.)
 
 Nothing here can fail for finite inputs: continuous functions on brackets with a sign
 change, and at most a fixed number of halvings.
@@ -40,8 +48,13 @@ ROOT_ITERATIONS = 200
 """Cap of the bracketed iterations (Illinois with bisection guard: ~10 are used)."""
 OMEGA_TOLERANCE = 1e-13
 """Width of the bracket on omega (rad/s, plus the same relative) at which it is solved."""
-FORCE_TOLERANCE = 1e-9
-"""Width of the bracket on the force parameter P (N, plus 1e-15 relative)."""
+FORCE_TOLERANCE = 1e-8
+"""Width of the bracket on the force parameter P (N, plus 1e-14 relative): through c1 ~ 4e-8
+(m/s)/N it moves ROP by less than 1e-13 m/s."""
+ROP_TOLERANCE = 1e-16
+"""Residual of the axial equation (m/s) at which it is solved."""
+BISECT_AFTER = 4
+"""Steps after which a bracket that has not halved is bisected (worst case: linear)."""
 EXPANSIONS = 80
 """Doublings allowed when a bracket is searched for (random germs only)."""
 
@@ -66,73 +79,84 @@ def solve_bit_equation(law: BitRockLaw, b, c, rho, germ=None, omega_guess=None):
     rho = np.asarray(rho, dtype=float)
     b1, b2 = b[:, 0], b[:, 1]
     c1, c2 = c[:, 0], c[:, 1]
+    guess = b2.copy() if omega_guess is None else np.asarray(omega_guess, dtype=float).copy()
+    # The free bit (P <= 0) turns at omega = b2 with no torque: free if it does not reach
+    # the bottom, or outruns the law's cut at zero force, at that speed.
+    free = ~(b1 > np.maximum(rho, law.cutting_rate(0.0, b2)))
+    on = ~free
+    warm = guess.copy()                             # the last omega found, per member
 
-    def torsion_residual(omega):
-        point = _axial(law, omega, b1, c1, rho, germ)
-        return omega - b2 - c2 * point[3]
+    def axial_residual(parameter):
+        omega = _torsion(law, parameter, b2, c2, rho, germ, warm)
+        warm[:] = np.where(np.isfinite(omega), omega, warm)
+        _, rop, f1, _, _ = _point(law, parameter, omega, rho, germ)
+        return rop - b1 - c1 * f1
+
+    # The mean law's root at the guessed speed, as the centre of a bracket widened by
+    # doublings: G(0) = max(rho, R(0, b2)) - b1 < 0 on the left, and F1 ~ G11 f for large
+    # |f| makes G -> +inf on the right.
+    centre = np.where(on, _mean_axial_root(law, np.clip(guess, np.minimum(0.0, b2),
+                                                         np.maximum(0.0, b2)),
+                                           b1, c1, rho), 0.0)
+    half = 0.02 * centre + 1.0
+    lo, hi = np.maximum(centre - half, 0.0), centre + half
+    r_lo, r_hi = axial_residual(lo), axial_residual(hi)
+    for _ in range(EXPANSIONS):
+        left = on & (r_lo > 0)
+        right = on & ~left & (r_hi < 0)
+        if not (left.any() or right.any()):
+            break
+        half = np.where(left | right, 2.0 * half, half)
+        hi, r_hi = np.where(left, lo, hi), np.where(left, r_lo, r_hi)
+        lo, r_lo = np.where(right, hi, lo), np.where(right, r_hi, r_lo)
+        lo = np.where(left, np.maximum(centre - half, 0.0), lo)
+        hi = np.where(right, centre + half, hi)
+        r_lo = np.where(left, axial_residual(lo), r_lo)
+        r_hi = np.where(right, axial_residual(hi), r_hi)
+    parameter = _illinois(axial_residual, lo, hi, r_lo, r_hi,
+                          lambda x: FORCE_TOLERANCE + 1e-14 * np.abs(x), ROP_TOLERANCE,
+                          active=on)
+    parameter = np.where(on, parameter, 0.0)
+    omega = np.where(on, _torsion(law, parameter, b2, c2, rho, germ, warm), b2)
+    _, rop, force, torque, cut = _point(law, parameter, omega, rho, germ)
+    rop = np.where(on, rop, b1)
+    lifted = force >= 0.0
+    return rop, omega, force, torque, lifted, parameter > 0, cut
+
+
+def _torsion(law, parameter, b2, c2, rho, germ, guess):
+    """omega solving omega = b2 + c2 F2(P, omega) at given P (bracketed, module docstring)."""
+    def residual(omega):
+        return omega - b2 - c2 * _point(law, parameter, omega, rho, germ)[3]
 
     zero = np.zeros_like(b2)
-    r_zero = -b2                                    # F2(0) = 0 for every law
-    r_b2 = torsion_residual(b2)
-    lo, hi, r_lo, r_hi = _ordered(zero, b2, r_zero, r_b2)
+    r_b2 = residual(b2)
+    lo, hi, r_lo, r_hi = _ordered(zero, b2, -b2, r_b2)              # F2(P, 0) = 0
     missing = ~_brackets(r_lo, r_hi)
     if missing.any():                               # a random torque that drives the bit
-        reach = np.abs(c2 * _axial(law, b2, b1, c1, rho, germ)[3]) + 1e-3
+        reach = np.abs(r_b2) + 1e-3                 # c2 |F2(P, b2)|
         for _ in range(EXPANSIONS):
             trial = b2 + np.sign(np.where(b2 == 0, 1.0, b2)) * reach
-            r_trial = torsion_residual(trial)
-            lo, hi, r_lo, r_hi = _extend(missing, lo, hi, r_lo, r_hi, trial, r_trial)
+            lo, hi, r_lo, r_hi = _extend(missing, lo, hi, r_lo, r_hi, trial, residual(trial))
             missing &= ~_brackets(r_lo, r_hi)
             if not missing.any():
                 break
             reach = 2.0 * reach
-    if omega_guess is not None:                     # narrow the bracket around the iterate
-        guess = np.clip(np.asarray(omega_guess, dtype=float), lo, hi)
-        lo, hi, r_lo, r_hi = _narrow(lo, hi, r_lo, r_hi, guess, torsion_residual(guess))
-    omega = _illinois(torsion_residual, lo, hi, r_lo, r_hi,
-                      lambda x: OMEGA_TOLERANCE * (1.0 + np.abs(x)))
-    force_parameter, rop, force, torque, cut = _axial(law, omega, b1, c1, rho, germ)
-    lifted = force >= 0.0
-    on_bottom = force_parameter > 0
-    return rop, omega, force, torque, lifted, on_bottom, cut
+    start = np.clip(guess, lo, hi)
+    lo, hi, r_lo, r_hi = _narrow(lo, hi, r_lo, r_hi, start, residual(start))
+    return _illinois(residual, lo, hi, r_lo, r_hi,
+                     lambda x: OMEGA_TOLERANCE * (1.0 + np.abs(x)), OMEGA_TOLERANCE)
 
 
-def _axial(law, omega, b1, c1, rho, germ):
-    """Root P of g(P) at a given omega and the point there: (P, ROP, F1, F2, cutting)."""
+def _mean_axial_root(law, omega, b1, c1, rho):
+    """P of the mean law's axial equation at a given omega, in closed form."""
     z = law._cutting_z(omega)
     r0 = law.cutting_rate(0.0, omega)
     top = np.maximum(rho, r0)
-    free = ~(b1 > top)                              # NaN inputs count as free (and stay NaN)
-    denominator = c1 + law.a2 * z * z
-    cut_force = (r0 - b1) / denominator
-    cut_rop = b1 + c1 * cut_force
-    resting = cut_rop <= rho
-    force = np.where(free, 0.0, np.where(resting, (rho - b1) / c1, cut_force))
-    parameter = np.where(free, b1 - top, -force)
-    if germ is not None and not free.all():
-        on = ~free
-
-        def g(p):
-            _, rop, f1, _, _ = _point(law, p, omega, rho, germ)
-            return rop - b1 - c1 * f1
-
-        lo = np.where(on, 0.0, parameter)
-        r_lo = np.where(on, top - b1, 0.0)
-        hi = np.where(on, np.maximum(parameter, 1.0), parameter)
-        r_hi = np.where(on, g(hi), 0.0)
-        for _ in range(EXPANSIONS):                 # F1 ~ G11 f for large |f|: g -> +inf
-            low = on & (r_hi < 0)
-            if not low.any():
-                break
-            lo, r_lo = np.where(low, hi, lo), np.where(low, r_hi, r_lo)
-            hi = np.where(low, 2.0 * hi, hi)
-            r_hi = np.where(low, g(hi), r_hi)
-        root = _illinois(g, lo, hi, r_lo, r_hi,
-                         lambda x: FORCE_TOLERANCE + 1e-15 * np.abs(x), active=on)
-        parameter = np.where(on, root, parameter)
-    p, rop, f1, f2, cut = _point(law, parameter, omega, rho, germ)
-    rop = np.where(free, b1, rop)
-    return p, rop, f1, f2, cut
+    cut_force = (r0 - b1) / (c1 + law.a2 * z * z)
+    resting = b1 + c1 * cut_force <= rho
+    force = np.where(resting, (rho - b1) / c1, cut_force)
+    return np.where(b1 > top, -force, 0.0)
 
 
 def _point(law, parameter, omega, rho, germ):
@@ -174,26 +198,35 @@ def _narrow(lo, hi, r_lo, r_hi, x, r_x):
             np.where(right, r_x, r_hi))
 
 
-def _illinois(func, lo, hi, r_lo, r_hi, tolerance, active=None):
+def _illinois(func, lo, hi, r_lo, r_hi, tolerance, residual_tolerance, active=None):
     """A root of ``func`` in each bracket [lo, hi] (residuals r_lo, r_hi of opposite signs):
-    regula falsi with the Illinois modification, and a bisection whenever the secant point
-    falls outside or too close to the ends. Members outside ``active`` return lo."""
+    regula falsi with the Illinois modification, and a bisection whenever the secant point is
+    not inside the bracket or the bracket has not halved in BISECT_AFTER steps. Converged when
+    the bracket, or a secant step, is below ``tolerance(x)``, or the residual below
+    ``residual_tolerance``. Members outside ``active`` return their start."""
     lo, hi = lo.copy(), hi.copy()
     r_lo, r_hi = r_lo.copy(), r_hi.copy()
     x = np.where(np.abs(r_lo) <= np.abs(r_hi), lo, hi)
-    done = (r_lo == 0) | (r_hi == 0) | ~np.isfinite(r_lo) | ~np.isfinite(r_hi)
+    done = ((np.minimum(np.abs(r_lo), np.abs(r_hi)) <= residual_tolerance)
+            | ~np.isfinite(r_lo) | ~np.isfinite(r_hi))
     if active is not None:
         done |= ~active
     done |= (hi - lo) <= tolerance(x)
     last_side = np.zeros(lo.shape, dtype=int)
+    reference = hi - lo                               # the width BISECT_AFTER steps ago
+    count = 0
     for _ in range(ROOT_ITERATIONS):
         if done.all():
             break
         width = hi - lo
-        with np.errstate(invalid='ignore', divide='ignore'):
+        count += 1
+        stalled = np.zeros(lo.shape, dtype=bool)
+        if count == BISECT_AFTER:
+            stalled = width > 0.5 * reference
+            reference, count = width, 0
+        with np.errstate(invalid='ignore', divide='ignore', over='ignore'):
             secant = hi - r_hi * width / (r_hi - r_lo)
-        guard = 0.01 * width
-        bisect = ~np.isfinite(secant) | (secant <= lo + guard) | (secant >= hi - guard)
+        bisect = stalled | ~np.isfinite(secant) | (secant <= lo) | (secant >= hi)
         trial = np.where(bisect, lo + 0.5 * width, secant)
         trial = np.where(done, x, trial)
         r_trial = func(trial)
@@ -206,6 +239,9 @@ def _illinois(func, lo, hi, r_lo, r_hi, tolerance, active=None):
         lo, r_lo = np.where(move_lo, trial, lo), np.where(move_lo, r_trial, r_lo)
         hi, r_hi = np.where(move_hi, trial, hi), np.where(move_hi, r_trial, r_hi)
         last_side = np.where(move_lo, -1, np.where(move_hi, 1, last_side))
+        moved = np.abs(trial - x)
         x = np.where(done, x, trial)
-        done |= (r_trial == 0) | ((hi - lo) <= tolerance(x)) | ~np.isfinite(r_trial)
+        small = tolerance(x)
+        done |= ((np.abs(r_trial) <= residual_tolerance) | ((hi - lo) <= small)
+                 | ~np.isfinite(r_trial) | (~bisect & (moved <= small)))
     return x
