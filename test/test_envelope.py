@@ -25,7 +25,7 @@ from drill_twin.dynamics.simulator import SUBSTEP_LEVELS, SimulationDiverged, Si
 from drill_twin.modal.reduced_basis import modal_analysis
 from drill_twin.uncertainty.germ import sample_germ
 
-settings.register_profile('envelope', derandomize=True, deadline=None, max_examples=6,
+settings.register_profile('envelope', derandomize=True, deadline=None, max_examples=12,
                           database=None, print_blob=True,
                           suppress_health_check=[HealthCheck.too_slow])
 PENETRATION_M = 1e-3

@@ -26,7 +26,7 @@ COLUMNS = {
     'weight_on_bit_n': 'axial force of the rock on the bit, f_bit; negative = compression (N)',
     'torque_on_bit_nm': 'torque of the rock on the bit, t_bit; negative = resisting (N m)',
     'depth_of_cut_m_per_rad': 'regularised depth of cut ROP omega / (omega^2 + e^2) (m/rad)',
-    'bit_lifted_off': '1 when the rock pushes on the bit with no force (off bottom, or the law would pull)',
+    'bit_lifted_off': '1 when the rock does not push on the bit (off bottom, or it would pull)',
     'top_torque_nm': 'torque the top drive applies to the string (N m)',
     'top_speed_rad_per_s': 'top-drive rotation speed (rad/s)',
     'hook_load_n': 'hook load applied at the top (N)',
