@@ -135,8 +135,11 @@ def test_off_bottom_the_hook_carries_the_strings_weight(sequence):
     drag = config.damping.mass_coefficient_per_s * mass * np.abs(table['hook_velocity'][hover])
     assert np.all(np.abs(table['hook'][hover] - weight) <= drag + 1e-3 * weight)
     assert np.mean(table['hook'][hover]) == pytest.approx(weight, rel=2e-4)
-    # Still turning, with no torque at the bit.
-    assert np.all(table['omega'][hover] > 0.5)
+    # Rotating off bottom: the bit swings about the top speed (the torsional mode the pick-up
+    # released, barely damped with no rock), with no torque at the bit.
+    off = table['on_bottom'] == 0
+    assert np.mean(table['omega'][off]) == pytest.approx(SPEED, rel=0.1)
+    assert np.ptp(table['omega'][off]) > 1.0
 
 
 def test_the_landing_is_detected(sequence):

@@ -63,7 +63,8 @@ class Observation:
     the top drive applies, > 0 when driving), top_speed_rad_per_s, top_angle_rad (shared),
     hook_load_n (shared), hook_position_m, hook_velocity_m_per_s (the top's axial
     displacement and velocity). Stations (m, n_stations, 3) for the fields (u, v, w):
-    station_displacement_m, station_velocity_m_per_s, station_acceleration_m_per_s2; station_spin_rate_rad_per_s (m, n_stations, 3) for
+    station_displacement_m, station_velocity_m_per_s, station_acceleration_m_per_s2;
+    station_spin_rate_rad_per_s (m, n_stations, 3) for
     (theta_x', theta_y', theta_z'). Wall: contact_force_n (m, n_nodes) radial force,
     in_contact (m, n_nodes). Events counted at every step since the start: impacts_so_far
     (onsets of wall contact, over all nodes), lift_offs_so_far and landings_so_far (the bit
