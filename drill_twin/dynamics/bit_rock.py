@@ -109,10 +109,10 @@ class BitRockLaw:
 
     # -- the law as the bit's solve uses it: ROP and torque as functions of the force ------
     def cutting_rate(self, force, omega):
-        """R(f, omega) = Zc^2 (-a1 - a2 f) + a3 omega Zc (m/s): the rate the bit cuts at under the
-        mean-law force f (N, < 0 pushes); negative below the cutting threshold. Zc = Z for
-        omega > 0 and 0 for omega <= 0: a bit turning backwards does not cut (Eq. 24 without
-        regularisation lowers ROP when omega < 0; R ~ omega^2 near 0, so the cut is C^1)."""
+        """R(f, omega) = Z^2 (-a1 - a2 f) + a3 omega Z (m/s): the rate the bit cuts at under the
+        mean-law force f (N, < 0 pushes), Eq. 25 solved for ROP; negative below the cutting
+        threshold. Smooth in f and omega, also at omega = 0 (R ~ omega^2), and even in omega
+        as the regularised law is (docs/MODEL-CHOICES.md, backward rotation)."""
         z = self._cutting_z(omega)
         return z * z * (-self.a1 - self.a2 * force) + self.a3 * omega * z
 
@@ -174,7 +174,7 @@ class BitRockLaw:
         return np.minimum(f1, 0.0), f2
 
     def _cutting_z(self, omega):
-        return np.where(omega > 0, omega / np.sqrt(omega * omega + self.e * self.e), 0.0)
+        return omega / np.sqrt(omega * omega + self.e * self.e)
 
     def steady_rop(self, omega, weight_on_bit_n):
         """ROP of Eq. 24 (regularised) at a given bit speed and weight on bit."""
