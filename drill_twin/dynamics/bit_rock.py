@@ -34,6 +34,9 @@ from drill_twin.config.schema import BitRock
 
 OMEGA_FLOOR_RAD_PER_S = 1e-9
 """|omega| is kept above this in 1 / omega^2 (the law is singular at omega = 0)."""
+TORQUE_FADE_FORCE_N = 1e3
+"""Above 24.8 rad/s the cutting threshold is above -1 kN: there the torque fades to zero
+over the last TORQUE_FADE_FORCE_N of force before lift-off (``torque_of_force``)."""
 
 
 @dataclass(frozen=True)
@@ -103,6 +106,75 @@ class BitRockLaw:
         torque = np.where(lifted, 0.0, torque)
         jacobian = np.where(lifted[..., None, None], 0.0, jacobian)
         return force, torque, lifted, jacobian
+
+    # -- the law as the bit's solve uses it: ROP and torque as functions of the force ------
+    def cutting_rate(self, force, omega):
+        """R(f, omega) = Z^2 (-a1 - a2 f) + a3 omega Z (m/s): the rate the bit cuts at under the
+        mean-law force f (N, < 0 pushes), Eq. 25 solved for ROP; negative below the cutting
+        threshold. Smooth in f and omega, also at omega = 0 (R ~ omega^2), and even in omega
+        as the regularised law is (docs/MODEL-CHOICES.md, backward rotation)."""
+        z = self._cutting_z(omega)
+        return z * z * (-self.a1 - self.a2 * force) + self.a3 * omega * z
+
+    def threshold_force(self, omega):
+        """f at which R(f, omega) = 0 for omega > 0, (a3 sqrt(omega^2 + e^2) - a1) / a2 (N),
+        written for any omega (even); about -47 kN at 5.2 rad/s, > 0 above 24.9 rad/s."""
+        return (self.a3 * np.sqrt(omega * omega + self.e * self.e) - self.a1) / self.a2
+
+    def fade_force(self, omega):
+        """f_ref = min(threshold, -TORQUE_FADE_FORCE_N) (N): the torque fades in proportion
+        to the force between f_ref and lift-off (f = 0), see ``torque_of_force``."""
+        return np.minimum(self.threshold_force(omega), -TORQUE_FADE_FORCE_N)
+
+    @property
+    def fade_speed_rad_per_s(self) -> float:
+        """Bit speed above which the threshold force exceeds -TORQUE_FADE_FORCE_N (rad/s):
+        below it, the torque fade never acts on the cutting branch (inf if it never does)."""
+        if self.a3 <= 0:
+            return float('inf')
+        root = (self.a1 - self.a2 * TORQUE_FADE_FORCE_N) / self.a3
+        return float(np.sqrt(max(root * root - self.e * self.e, 0.0))) if root > 0 else 0.0
+
+    def torque_of_force(self, force, omega, cutting_rate=None):
+        """t_bit on bottom under the mean-law force f (N m):
+
+            t = -Z (a4 max(R, 0) / sqrt(omega^2 + e^2) + a5) min(1, f / f_ref),
+
+        which is Eq. 26, t = -a4 ROP omega / s - a5 Z, wherever the bit cuts with f <= f_ref
+        (the whole cutting branch below 24.8 rad/s). Below the cutting threshold (the bit
+        rests on the rock, ROP = 0) the friction-like term -a5 Z is carried in proportion to
+        the force and vanishes at lift-off, so the torque is continuous in f everywhere."""
+        s = omega * omega + self.e * self.e
+        root = np.sqrt(s)
+        rate = self.cutting_rate(force, omega) if cutting_rate is None else cutting_rate
+        share = np.clip(force / self.fade_force(omega), 0.0, 1.0)
+        return -(omega / root) * (self.a4 * np.maximum(rate, 0.0) / root + self.a5) * share
+
+    def randomised(self, force, torque, rop, cutting_rate, omega, germ):
+        """(F1, F2) of the random law at a point of the law's graph (shapes (m,)).
+
+        force, torque: the mean law there; rop: the bit's ROP (>= cutting rate on bottom);
+        cutting_rate: R(f, omega). The deviation of Eq. 50, written with A = diag(-f/ROP,
+        -t/omega), is blended in with w(max(R, 0)) (w(ROP) on the cutting branch, as in
+        ``forces``; 0 where the bit does not cut, so the law is continuous at omega = 0 and
+        at the cutting threshold). The axial force cannot pull (F1 <= 0); the torque is
+        kept when the random F1 reaches 0, so it stays continuous (docs/MODEL-CHOICES.md).
+        """
+        if germ is None:
+            return force, torque
+        g11, g12, g22 = germ[:, 0, 0], germ[:, 0, 1], germ[:, 1, 1]
+        admissible = (cutting_rate > 0) & (rop > 0) & (omega > 0) & (force < 0) & (torque < 0)
+        safe_rop = np.where(admissible, rop, 1.0)
+        safe_omega = np.where(admissible, omega, 1.0)
+        coupling = np.sqrt(np.where(admissible, (force / safe_rop) * (torque / safe_omega), 0.0))
+        cut = np.where(admissible, cutting_rate, 0.0)
+        weight = cut * cut / (cut * cut + self.rop_scale * self.rop_scale)
+        f1 = force + weight * ((g11 - 1.0) * force - g12 * coupling * safe_omega)
+        f2 = torque + weight * ((g22 - 1.0) * torque - g12 * coupling * safe_rop)
+        return np.minimum(f1, 0.0), f2
+
+    def _cutting_z(self, omega):
+        return omega / np.sqrt(omega * omega + self.e * self.e)
 
     def steady_rop(self, omega, weight_on_bit_n):
         """ROP of Eq. 24 (regularised) at a given bit speed and weight on bit."""

@@ -41,11 +41,13 @@ g(t) = -Phi^T (M psi theta_top'' + C psi theta_top') carries the imposed top rot
 """
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.linalg as la
 
+from drill_twin.dynamics.bit_equation import solve_bit_equation
 from drill_twin.dynamics.contact import ContactForces
 from drill_twin.dynamics.forces import ForceEvaluation, Kinematics, NonlinearForces
 
@@ -55,12 +57,8 @@ VELOCITY_SCALE = 1e-9
 """Added to the velocity norm in the convergence test (modal units, sqrt(kg) m/s)."""
 VERIFY_EVERY = 25
 """A step runs at least two iterations this often, to measure the contraction rate."""
-BIT_ITERATIONS = 60
-"""Cap of the Newton iterations on the bit's 2x2 equation (a few suffice)."""
-BIT_SCALE = np.array([1e-3, 1.0])
-"""Scales of ROP (m/s) and bit speed (rad/s) in the bit equation's norms."""
-BIT_TOLERANCE = 1e-12
-"""Scaled step size at which the bit equation counts as solved."""
+ON_BOTTOM_TOLERANCE_M = 1e-6
+"""The bit counts as on bottom when it is within this of the hole bottom (m)."""
 
 
 @dataclass
@@ -69,7 +67,10 @@ class BatchState:
 
     q, q_rate, q_acceleration: reduced coordinates and derivatives, shape (m, n).
     top_angle_rad, top_speed_rad_per_s, top_acceleration_rad_per_s2: the driven rotation
-    (shared by all members); hook_load_n: the hook load in force.
+    (shared by all members); hook_load_n: the hook load in force. hole_u: the hole bottom as
+    an axial displacement of the bit from the prestressed state, (m,) (m, down): the deepest
+    the bit has been; the bit is off bottom when its displacement is smaller. None: the bit
+    is on bottom (the hole bottom is where the bit is).
     """
 
     time_s: float
@@ -80,12 +81,21 @@ class BatchState:
     top_speed_rad_per_s: float
     top_acceleration_rad_per_s2: float
     hook_load_n: float
+    hole_u: np.ndarray | None = None
 
     def copy(self) -> 'BatchState':
         return BatchState(self.time_s, self.q.copy(), self.q_rate.copy(),
                           self.q_acceleration.copy(), self.top_angle_rad,
                           self.top_speed_rad_per_s, self.top_acceleration_rad_per_s2,
-                          self.hook_load_n)
+                          self.hook_load_n, None if self.hole_u is None else self.hole_u.copy())
+
+    def take(self, members) -> 'BatchState':
+        """The state of ``members`` (indices) only, copied."""
+        return BatchState(self.time_s, self.q[members].copy(), self.q_rate[members].copy(),
+                          self.q_acceleration[members].copy(), self.top_angle_rad,
+                          self.top_speed_rad_per_s, self.top_acceleration_rad_per_s2,
+                          self.hook_load_n,
+                          None if self.hole_u is None else self.hole_u[members].copy())
 
 
 @dataclass(frozen=True)
@@ -95,6 +105,8 @@ class StepResult:
     converged, finite: per member (m,); iterations: used; error: final relative velocity
     increment per member; message: why it failed ('' on success); forces: the forces of the
     final state (the bit's exactly, the others at each member's last evaluation).
+    retries: (m,) sub-steps each member was integrated on after its full step failed (0 when
+    the full step worked; set by the Simulator, None from the integrator alone).
     """
 
     success: bool
@@ -104,6 +116,7 @@ class StepResult:
     error: np.ndarray
     message: str
     forces: ForceEvaluation
+    retries: np.ndarray | None = None
 
 
 @dataclass
@@ -131,6 +144,9 @@ class _BitSolution:
     solved: np.ndarray
 
 
+_BIT_FIELDS = ('rop', 'omega', 'force', 'torque', 'lifted', 'jacobian', 'solved')
+
+
 class NewmarkIntegrator:
     """Average-acceleration Newmark with a cached S0^-1 and an exact bit solve.
 
@@ -146,6 +162,11 @@ class NewmarkIntegrator:
                  max_iterations: int, germ: np.ndarray | None = None):
         system = forces.system
         self.forces = forces
+        # f_NL without the bit: the bit-rock law is solved with the 2x2 equation of each
+        # iteration (forces at the iterate's velocities would cancel out, and are singular
+        # at omega = 0).
+        self._forces_without_bit = copy.copy(forces)
+        self._forces_without_bit.physics = replace(forces.physics, bit_rock=False)
         self.system = system
         self.time_step_s = float(time_step_s)
         self.tolerance = float(tolerance)
@@ -183,6 +204,7 @@ class NewmarkIntegrator:
         self.bit_rows = np.ascontiguousarray(local[:, :2].T)               # B^T, (2, n)
         self.bit_response = np.ascontiguousarray(self.local_response[:, :2])   # S0^-1 B
         self.bit_flexibility = self.local_gram[:2, :2]                     # B^T S0^-1 B
+        self.bit_axial_row = np.ascontiguousarray(local[:, 0])              # u_bit = q . row
         self.static_bit_force = np.array([forces.static_weight_on_bit_n, 0.0])
         self.top_axial_row = system.top_axial_row
         self.static_hook_load_n = system.model.prestress.hook_load_n
@@ -190,23 +212,53 @@ class NewmarkIntegrator:
         self._rate = None                 # per member: contraction rate of its last 2-iteration step
         self._steps_since_verified = None
         self._active = None               # (contact flags, lift-off flags) at the last step
+        self._before_step = None          # the bookkeeping before the last step
 
     # -- initial state -------------------------------------------------------------------
     def initial_state(self, q: np.ndarray, q_rate: np.ndarray, top_speed_rad_per_s: float,
-                      hook_load_n: float, top_angle_rad: float = 0.0) -> BatchState:
-        """A state at t = 0 with the accelerations that balance Eq. 35 (fixed point)."""
+                      hook_load_n: float, top_angle_rad: float = 0.0,
+                      hole_u: np.ndarray | None = None) -> BatchState:
+        """A state at t = 0 with the accelerations that balance Eq. 35 (fixed point).
+
+        hole_u: the hole bottom (m,), or None to put it where the bit is (on bottom)."""
         state = BatchState(0.0, np.array(q, dtype=float), np.array(q_rate, dtype=float),
                            np.zeros_like(q, dtype=float), top_angle_rad,
                            top_speed_rad_per_s, 0.0, hook_load_n)
+        bit_u = state.q @ self.bit_axial_row
+        state.hole_u = bit_u.copy() if hole_u is None else np.maximum(
+            np.broadcast_to(np.asarray(hole_u, dtype=float), bit_u.shape), bit_u)
         load = self._external_load(state.top_speed_rad_per_s, 0.0, hook_load_n)
         for _ in range(5):
-            fields = Kinematics.of(self.system, state.q, state.q_rate, state.q_acceleration,
-                                   state.top_speed_rad_per_s, 0.0)
-            evaluation = self.forces.evaluate(fields, self.germ)
+            evaluation = self.evaluate(state)
             residual_free = (evaluation.modal + load - state.q_rate @ self.damping_t
                              - self._stiffness_times(state.q))
             state.q_acceleration = la.solve(self.mass, residual_free.T).T
         return state
+
+    def evaluate(self, state: BatchState) -> ForceEvaluation:
+        """f_NL at a state, with the bit-rock law of Eq. 25 at its velocities when the bit is
+        on bottom (and no rock force when it is off bottom)."""
+        fields = Kinematics.of(self.system, state.q, state.q_rate, state.q_acceleration,
+                               state.top_speed_rad_per_s, state.top_acceleration_rad_per_s2)
+        evaluation = self._forces_without_bit.evaluate(fields, self.germ)
+        if not self.forces.physics.bit_rock:
+            return evaluation
+        rop, omega = evaluation.rop_m_per_s, evaluation.bit_speed_rad_per_s
+        force, torque, lifted, jacobian = self.forces.law.forces_and_jacobian(rop, omega,
+                                                                               self.germ)
+        if state.hole_u is not None:
+            off = state.q @ self.bit_axial_row < state.hole_u - ON_BOTTOM_TOLERANCE_M
+            force, torque = np.where(off, 0.0, force), np.where(off, 0.0, torque)
+            lifted = lifted | off
+            jacobian = np.where(off[:, None, None], 0.0, jacobian)
+        bit = _BitSolution(rop, omega, force, torque, lifted, jacobian,
+                           np.ones(rop.shape, dtype=bool))
+        return self._with_bit(evaluation, bit)
+
+    def with_time_step(self, time_step_s: float) -> 'NewmarkIntegrator':
+        """The same integrator (forces, tolerance, germs) with another time step."""
+        return NewmarkIntegrator(self.forces, time_step_s, self.tolerance, self.max_iterations,
+                                 self.germ)
 
     def _external_load(self, top_speed, top_acceleration, hook_load_n):
         system = self.system
@@ -237,6 +289,12 @@ class NewmarkIntegrator:
         v_pred = state.q_rate + (1.0 - GAMMA) * dt * state.q_acceleration
         load = self._external_load(top_speed_rad_per_s, top_acceleration, hook_load_n)
         members = state.q.shape[0]
+        hole = state.hole_u if state.hole_u is not None else state.q @ self.bit_axial_row
+        # The end-of-step ROP that puts the bit on the hole bottom (Newmark: d = d* +
+        # (beta/gamma) dt (v - v*)); below it the bit ends the step above the bottom.
+        row = self.bit_axial_row
+        touch = d_pred @ row
+        touch = np.maximum(v_pred @ row + GAMMA / (BETA * dt) * (hole - touch), 0.0)
         bookkeeping = self._bookkeeping()              # restored if the step fails
         a = state.q_acceleration.copy()
         error = np.full(members, np.inf)
@@ -248,13 +306,13 @@ class NewmarkIntegrator:
             d = d_pred + BETA * dt * dt * a
             v = v_pred + GAMMA * dt * a
             fields = Kinematics.of(self.system, d, v, a, top_speed_rad_per_s, top_acceleration)
-            evaluation = self.forces.evaluate(fields, self.germ)
+            evaluation = self._forces_without_bit.evaluate(fields, self.germ)
             self.counters.force_evaluations += 1
             # Frozen members were evaluated at their final state: keep that evaluation.
             final = evaluation if final is None else _merge(final, evaluation, ~active)
             residual = (self._mass_times(a) + v @ self.damping_t + self._stiffness_times(d)
                         - evaluation.modal - load)
-            updated, solution = self._update(a, residual, evaluation)
+            updated, solution = self._update(a, residual, evaluation, touch)
             if active.all():
                 increment, a, bit = a - updated, updated, solution
             else:
@@ -269,7 +327,8 @@ class NewmarkIntegrator:
             active &= np.isfinite(error) & bit_ok       # a failing member stops alone
             done = active & (error <= self.tolerance)
             if iterations == 1:
-                accepted = active & self._accept_first_iterate(error, evaluation)
+                accepted = active & self._accept_first_iterate(error, evaluation,
+                                                               solution.lifted)
                 error = np.where(accepted, self._rate / (1.0 - self._rate) * error, error)
                 done |= accepted
             elif iterations == 2:
@@ -286,6 +345,7 @@ class NewmarkIntegrator:
         self._active = (evaluation.contact.in_contact.copy(), evaluation.lifted.copy())
         d = d_pred + BETA * dt * dt * a
         v = v_pred + GAMMA * dt * a
+        hole = np.maximum(hole, d @ row)                 # the hole only deepens
         finite = np.all(np.isfinite(d), axis=1) & np.all(np.isfinite(v), axis=1)
         converged = finite & bit_ok & (error <= self.tolerance)
         success = bool(converged.all())
@@ -299,13 +359,14 @@ class NewmarkIntegrator:
         elif not success:
             message = (f'no convergence in {self.max_iterations} iterations at t = {time:.6g} s '
                        f'(members {np.flatnonzero(~converged)}, error {np.max(error):.3g})')
-        if not success:
-            self._restore(bookkeeping)                 # a discarded step leaves no trace
+        self._before_step = bookkeeping
+        if not success:                                # a failed member's step leaves no trace
+            self._restore(bookkeeping, ~converged)
         self.counters.steps += 1
         self.counters.iterations += iterations
         self.counters.failed_steps += int(not success)
         new_state = BatchState(time, d, v, a, top_angle, top_speed_rad_per_s, top_acceleration,
-                               hook_load_n)
+                               hook_load_n, hole)
         return new_state, StepResult(success, converged, finite, iterations, error, message,
                                      evaluation)
 
@@ -314,10 +375,32 @@ class NewmarkIntegrator:
                 (tuple(v.copy() for v in x) if isinstance(x, tuple) else x.copy()))
         return copy(self._rate), copy(self._steps_since_verified), copy(self._active)
 
-    def _restore(self, bookkeeping) -> None:
-        self._rate, self._steps_since_verified, self._active = bookkeeping
+    def _restore(self, bookkeeping, members=None) -> None:
+        """Put back the bookkeeping of ``members`` (a mask; None: all) as it was."""
+        rate, since, active = bookkeeping
+        if members is None or rate is None or active is None or self._rate is None:
+            self._rate, self._steps_since_verified, self._active = bookkeeping
+            return
+        self._rate[members] = rate[members]
+        self._steps_since_verified[members] = since[members]
+        for now, before in zip(self._active, active):
+            now[members] = before[members]
 
-    def _accept_first_iterate(self, error, evaluation) -> np.ndarray:
+    def discard_last_step(self) -> None:
+        """Forget the last step entirely (its caller did not keep it)."""
+        if self._before_step is not None:
+            self._restore(self._before_step)
+            self._before_step = None
+
+    def forget(self, members) -> None:
+        """Drop the contraction-rate history of ``members`` (indices; None: of everyone), so
+        that their next step verifies its first iterate."""
+        if members is None:
+            self._rate = self._steps_since_verified = self._active = None
+        elif self._rate is not None:
+            self._rate[members] = np.nan
+
+    def _accept_first_iterate(self, error, evaluation, lifted) -> np.ndarray:
         """Members whose first iterate is accepted on their own contraction rate (m,)."""
         members = error.shape[0]
         if self._rate is None or self._rate.shape != (members,):
@@ -326,28 +409,27 @@ class NewmarkIntegrator:
             return np.zeros(members, dtype=bool)
         accept = np.isfinite(self._rate) & (self._steps_since_verified < VERIFY_EVERY)
         if self._active is not None:
-            contact, lifted = self._active
+            contact = self._active[0]
             accept &= (contact == evaluation.contact.in_contact).all(axis=1)
-            accept &= lifted == evaluation.lifted
+            accept &= self._active[1] == lifted
         with np.errstate(invalid='ignore'):
             accept &= self._rate / (1.0 - self._rate) * error <= self.tolerance
         return accept
 
     # -- the update of one iteration -----------------------------------------------------
-    def _update(self, a, residual, evaluation: ForceEvaluation):
-        """New accelerations (m, n) with the bit solved exactly (module docstring)."""
+    def _update(self, a, residual, evaluation: ForceEvaluation, touch):
+        """New accelerations (m, n) with the bit solved exactly (module docstring); the
+        residual is without the bit's forces; touch: (m,) the ROP that reaches the hole bottom
+        at the end of the step (0 on bottom)."""
         gdt = GAMMA * self.time_step_s
-        applied = np.stack([evaluation.weight_on_bit_n, evaluation.torque_on_bit_nm], axis=1)
-        applied -= self.static_bit_force
-        residual_without_bit = residual + applied @ self.bit_rows
-        y, response = self._inverse_with_contact(residual_without_bit, evaluation)
+        y, response = self._inverse_with_contact(residual, evaluation)
         if response is None:                                  # no contact: constant S0
             flexibility = np.broadcast_to(self.bit_flexibility, (a.shape[0], 2, 2))
         else:
             flexibility = np.einsum('in,mnj->mij', self.bit_rows, response)   # B^T S^-1 B
         start = np.stack([evaluation.rop_m_per_s, evaluation.bit_speed_rad_per_s], axis=1)
         linear = start - gdt * (y @ self.bit_rows_t)
-        solution = self._solve_bit(linear, flexibility, start, evaluation)
+        solution = self._solve_bit(linear, flexibility, start, touch)
         force = np.stack([solution.force, solution.torque], axis=1) - self.static_bit_force
         if response is None:
             return a - y + force @ self.bit_response.T, solution
@@ -380,65 +462,67 @@ class NewmarkIntegrator:
             response[member] -= directions @ (correction @ self.local_gram[np.ix_(index, [0, 1])])
         return y, response
 
-    def _solve_bit(self, linear, flexibility, start, evaluation) -> _BitSolution:
-        """Solve x = linear + gamma dt H (F(x) - F_c) per member (Newton, backtracking)."""
+    def _solve_bit(self, linear, flexibility, start, touch) -> _BitSolution:
+        """Solve x = linear + gamma dt H (F(x) - F_c) per member.
+
+        Fast path: one Newton step on Eq. 25 from the iterate's velocities ``start``, kept
+        where it stays on the law's cutting branch (bit on bottom and cutting, omega > 0,
+        same signs, ROP within a factor of two, the force below the torque-fade force):
+        there the law is smooth and the outer iteration checks the linearisation. Everyone
+        else gets the bracketed solve of :mod:`drill_twin.dynamics.bit_equation`, which
+        cannot fail (lift-off, landing, rest on bottom, stopped or backward rotation).
+        """
         gdt = GAMMA * self.time_step_s
         law, germ = self.forces.law, self.germ
+        members = linear.shape[0]
         if not self.forces.physics.bit_rock:
-            members = linear.shape[0]
             return _BitSolution(linear[:, 0], linear[:, 1],
                                 np.full(members, self.static_bit_force[0]), np.zeros(members),
                                 np.zeros(members, bool), np.zeros((members, 2, 2)),
                                 np.ones(members, bool))
-
-        def residual_of(x, force, torque):
-            applied = np.stack([force, torque], axis=1) - self.static_bit_force
-            return x - linear - gdt * np.einsum('mij,mj->mi', flexibility, applied)
-
-        force, torque = evaluation.weight_on_bit_n, evaluation.torque_on_bit_nm
-        lifted, jacobian = evaluation.lifted, evaluation.bit_jacobian
-        g = residual_of(start, force, torque)
+        force, torque, lifted, jacobian = law.forces_and_jacobian(start[:, 0], start[:, 1], germ)
+        self.counters.bit_law_evaluations += 1
+        applied = np.stack([force, torque], axis=1) - self.static_bit_force
+        g = start - linear - gdt * np.einsum('mij,mj->mi', flexibility, applied)
         step = _solve2(np.eye(2) - gdt * flexibility @ jacobian, g)
         x = start - step
-        # Fast path: one Newton step that stays on the same branch of the law (same signs,
-        # same lift-off state, ROP within a factor of two); its forces are carried linearly
-        # and the outer iteration checks them. Otherwise the guarded solve below.
         carried = np.stack([force, torque], axis=1) - np.einsum('mij,mj->mi', jacobian, step)
-        # A lifted bit cannot be confirmed by linearisation (its Jacobian is zero): guarded.
         safe = (np.all(np.sign(x) == np.sign(start), axis=1)
                 & (np.abs(step[:, 0]) <= 0.5 * np.abs(start[:, 0]))
-                & ~lifted & (carried[:, 0] < 0))
-        force = np.where(safe, carried[:, 0], force)
-        torque = np.where(safe, carried[:, 1], torque)
-        solved = safe.copy()
-        if solved.all():
-            return _BitSolution(x[:, 0], x[:, 1], force, torque, lifted, jacobian, solved)
-        x = np.where(solved[:, None], x, start)
-        for _ in range(BIT_ITERATIONS):
-            step = _solve2(np.eye(2) - gdt * flexibility @ jacobian, g)
-            size = np.max(np.abs(step) / (np.abs(x) + BIT_SCALE), axis=1)
-            solved |= size <= BIT_TOLERANCE
-            if np.all(solved):
-                break
-            norm = np.linalg.norm(g / BIT_SCALE, axis=1)
-            length = np.where(solved, 0.0, 1.0)
-            for _ in range(30):                           # backtracking on |g|
-                trial = x - length[:, None] * step
-                f, t, lf, jac = law.forces_and_jacobian(trial[:, 0], trial[:, 1], germ)
-                self.counters.bit_law_evaluations += 1
-                g_trial = residual_of(trial, f, t)
-                better = (np.linalg.norm(g_trial / BIT_SCALE, axis=1)
-                          <= (1 - 1e-4 * length) * norm) | solved
-                if np.all(better | (length < 1e-9)):
-                    break
-                length = np.where(better, length, 0.5 * length)
-            moved = ~solved
-            x = np.where(moved[:, None], trial, x)
-            force, torque = np.where(moved, f, force), np.where(moved, t, torque)
-            lifted = np.where(moved, lf, lifted)
-            jacobian = np.where(moved[:, None, None], jac, jacobian)
-            g = np.where(moved[:, None], g_trial, g)
-        return _BitSolution(x[:, 0], x[:, 1], force, torque, lifted, jacobian, solved)
+                & ~lifted & (carried[:, 0] < 0) & (x[:, 0] > touch) & (x[:, 1] > 0))
+        fast = x[:, 1] >= law.fade_speed_rad_per_s        # where the torque may fade
+        if fast.any():
+            with np.errstate(invalid='ignore', divide='ignore', over='ignore'):
+                mean_force = law.mean(x[:, 0], x[:, 1])[0]
+                safe &= ~fast | (mean_force < law.fade_force(x[:, 1]))
+        solution = _BitSolution(x[:, 0], x[:, 1], carried[:, 0], carried[:, 1],
+                                np.zeros(members, bool), jacobian, np.ones(members, bool))
+        if safe.all():
+            return solution
+        rest = np.flatnonzero(~safe)
+        c = gdt * np.stack([flexibility[rest, 0, 0], flexibility[rest, 1, 1]], axis=1)
+        b = linear[rest] - c * self.static_bit_force
+        # A bit that cannot reach the rock (or outruns the law's cut at zero force) at the
+        # speed it has without a rock torque is free: F = 0, omega = b2, no search.
+        free = ~(b[:, 0] > np.maximum(touch[rest], law.cutting_rate(0.0, b[:, 1])))
+        rop, omega = b[:, 0].copy(), b[:, 1].copy()
+        f1, f2 = np.zeros(rest.size), np.zeros(rest.size)
+        lf = np.ones(rest.size, dtype=bool)
+        search = np.flatnonzero(~free)
+        if search.size:
+            sub_germ = None if germ is None else germ[rest[search]]
+            found = solve_bit_equation(law, b[search], c[search], touch[rest[search]], sub_germ,
+                                       omega_guess=start[rest[search], 1])
+            for array, value in zip((rop, omega, f1, f2, lf), found):
+                array[search] = value
+        self.counters.bit_law_evaluations += 1
+        # The Jacobian of a guarded member is the law's at the iterate (it informs nothing).
+        jacobian[rest] = np.where(lf[:, None, None], 0.0, jacobian[rest])
+        robust = _BitSolution(rop, omega, f1, f2, lf, jacobian[rest],
+                              np.isfinite(rop) & np.isfinite(omega))
+        for name in _BIT_FIELDS:
+            getattr(solution, name)[rest] = getattr(robust, name)
+        return solution
 
     def _with_bit(self, evaluation: ForceEvaluation, bit: _BitSolution) -> ForceEvaluation:
         """The evaluation with the bit's forces of the final state (exact)."""
@@ -446,9 +530,12 @@ class NewmarkIntegrator:
         system = self.system
         axial = system.field(0).start + system.bit_node
         torsion = system.field(1).start + system.bit_node
-        full[:, axial] += (bit.force - evaluation.weight_on_bit_n)
-        full[:, torsion] += (bit.torque - evaluation.torque_on_bit_nm)
-        return replace(evaluation, full=full, weight_on_bit_n=bit.force,
+        change = np.stack([bit.force - evaluation.weight_on_bit_n,
+                           bit.torque - evaluation.torque_on_bit_nm], axis=1)
+        full[:, axial] += change[:, 0]
+        full[:, torsion] += change[:, 1]
+        return replace(evaluation, full=full, modal=evaluation.modal + change @ self.bit_rows,
+                       weight_on_bit_n=bit.force,
                        torque_on_bit_nm=bit.torque, rop_m_per_s=bit.rop,
                        bit_speed_rad_per_s=bit.omega, lifted=bit.lifted,
                        bit_jacobian=bit.jacobian)
@@ -471,8 +558,7 @@ def _pick(members, kept, new):
 def _merge_bit(kept: _BitSolution, new: _BitSolution, members) -> _BitSolution:
     """``new`` for ``members``, ``kept`` for the others."""
     return _BitSolution(*(_pick(members, getattr(kept, f), getattr(new, f))
-                          for f in ('rop', 'omega', 'force', 'torque', 'lifted', 'jacobian',
-                                    'solved')))
+                          for f in _BIT_FIELDS))
 
 
 def _merge(kept: ForceEvaluation, new: ForceEvaluation, members: np.ndarray) -> ForceEvaluation:

@@ -4,18 +4,32 @@
 members (all driven by the same top drive and hook). The twin and the offline runs both use
 it: ``step`` advances dt under the current commands, ``observe`` returns the bit, top and
 station quantities of the last step.
+
+Robust stepping. A member whose step fails (no convergence, non-finite state) is integrated
+again over the same dt on sub-steps: dt/2, halved after every failure down to dt/16 and
+doubled back after every success (as far as dt/2, aligned on the step), one member at a
+time so that no member depends on the rest of its batch. Only when even dt/16 fails does
+``step`` raise :class:`SimulationDiverged` naming the member (the twin then resets it). Steps
+that need no retry cost what they did: the sub-step integrators are built on first use.
+
+Bit and hole. The hole bottom is the deepest the bit has been (it starts where the bit is):
+the bit is on bottom when it is there, off bottom above it (no rock force; a hook load above
+the string's weight lifts it), and lands on it again as a unilateral contact
+(docs/MODEL-CHOICES.md). ROP is the rate the hole deepens.
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from drill_twin.config.schema import DrillStringConfig
 from drill_twin.dynamics.bit_rock import BitRockLaw
-from drill_twin.dynamics.forces import ForceEvaluation, Kinematics, NonlinearForces
-from drill_twin.dynamics.newmark import BatchState, NewmarkIntegrator, StepResult
+from drill_twin.dynamics.contact import ContactForces
+from drill_twin.dynamics.forces import ForceEvaluation, NonlinearForces
+from drill_twin.dynamics.newmark import (ON_BOTTOM_TOLERANCE_M, BatchState, NewmarkIntegrator,
+                                         StepResult)
 from drill_twin.dynamics.reduced_system import ReducedSystem, build_reduced_system
 from drill_twin.modal.reduced_basis import modal_analysis
 
@@ -30,21 +44,31 @@ class SimulationDiverged(RuntimeError):
         self.members = tuple(int(m) for m in members)
 
 
+SUBSTEP_LEVELS = 4
+"""A failed step is retried on sub-steps down to dt / 2**SUBSTEP_LEVELS (dt/16)."""
+
+
 @dataclass(frozen=True)
 class Observation:
     """What the rig and the sensors see after a step, per member (arrays of shape (m,)).
 
-    Bit: depth_m (measured along the string, down from the top's initial position),
-    rop_m_per_s, angle_rad, speed_rad_per_s, weight_on_bit_n (f_bit, < 0 in compression),
-    torque_on_bit_nm (t_bit), depth_of_cut_m_per_rad (regularised, ROP omega / (omega^2 +
-    e^2)), lifted (bit off the rock). Top: top_torque_nm (the torque the top drive applies,
-    > 0 when driving), top_speed_rad_per_s, top_angle_rad (shared), hook_load_n (shared),
-    hook_position_m, hook_velocity_m_per_s (the top's axial displacement and velocity). Stations (m, n_stations, 3) for the fields
-    (u, v, w): station_displacement_m, station_velocity_m_per_s,
-    station_acceleration_m_per_s2; station_spin_rate_rad_per_s (m, n_stations, 3) for
+    Bit: depth_m (measured along the string, down from the top's initial position; the same
+    as bit_depth_m), rop_m_per_s (the rate the hole deepens: the bit's axial velocity while
+    it cuts on bottom, 0 otherwise), angle_rad, speed_rad_per_s, weight_on_bit_n (f_bit, < 0
+    in compression), torque_on_bit_nm (t_bit), depth_of_cut_m_per_rad (regularised, ROP
+    omega / (omega^2 + e^2)), lifted (no axial force of the rock on the bit: off bottom, or
+    touching it without load). Hole: bit_depth_m, hole_depth_m (the deepest the bit has been,
+    same reference; never decreases), on_bottom (the bit within 1 um of the hole bottom),
+    bit_axial_velocity_m_per_s (du_bit/dt, < 0 moving up). Top: top_torque_nm (the torque
+    the top drive applies, > 0 when driving), top_speed_rad_per_s, top_angle_rad (shared),
+    hook_load_n (shared), hook_position_m, hook_velocity_m_per_s (the top's axial
+    displacement and velocity). Stations (m, n_stations, 3) for the fields (u, v, w):
+    station_displacement_m, station_velocity_m_per_s, station_acceleration_m_per_s2;
+    station_spin_rate_rad_per_s (m, n_stations, 3) for
     (theta_x', theta_y', theta_z'). Wall: contact_force_n (m, n_nodes) radial force,
     in_contact (m, n_nodes). Events counted at every step since the start: impacts_so_far
-    (onsets of wall contact, over all nodes) and lift_offs_so_far, (m,).
+    (onsets of wall contact, over all nodes), lift_offs_so_far and landings_so_far (the bit
+    tags the hole bottom after being off bottom), (m,).
     """
 
     time_s: float
@@ -70,6 +94,11 @@ class Observation:
     in_contact: np.ndarray
     impacts_so_far: np.ndarray
     lift_offs_so_far: np.ndarray
+    bit_depth_m: np.ndarray | None = None
+    hole_depth_m: np.ndarray | None = None
+    on_bottom: np.ndarray | None = None
+    bit_axial_velocity_m_per_s: np.ndarray | None = None
+    landings_so_far: np.ndarray | None = None
 
 
 class TopDrive:
@@ -111,6 +140,7 @@ class Simulator:
         self.integrator = NewmarkIntegrator(self.forces, integration.time_step_s,
                                             integration.tolerance, integration.max_iterations,
                                             germs)
+        self._substep_integrators: dict[int, NewmarkIntegrator] = {}
         self.law = BitRockLaw.from_config(config.bit_rock)
         self.dt = integration.time_step_s
         prestress = system.model.prestress
@@ -124,6 +154,13 @@ class Simulator:
         self.last = self._evaluate(self.state)
         self.impact_count = np.zeros(self.members, dtype=int)
         self.lift_off_count = np.zeros(self.members, dtype=int)
+        self.landing_count = np.zeros(self.members, dtype=int)
+        self.retries = 0
+        """Member-steps integrated again on sub-steps since the start (all members)."""
+        self.retries_by_member = np.zeros(self.members, dtype=int)
+        self.substeps = 0
+        """Sub-steps attempted in those retries (successful or not)."""
+        self._on_bottom = self.on_bottom()
 
     # -- commands ------------------------------------------------------------------------
     def set_top_drive_speed(self, rad_per_s: float) -> None:
@@ -136,7 +173,8 @@ class Simulator:
 
     def reset(self, q: np.ndarray | None = None, q_rate: np.ndarray | None = None) -> None:
         """Restart from reduced coordinates (m, n) and rates, or from the configured initial
-        state; the commands, the top-drive angle and the event counters are kept."""
+        state, with the bit on the bottom of a hole that ends where the bit is; the commands,
+        the top-drive angle and the event counters are kept."""
         speed = self.top_drive.speed_rad_per_s
         default_q, default_rate = self._initial_coordinates(speed)
         q = default_q if q is None else np.broadcast_to(q, default_q.shape)
@@ -146,11 +184,13 @@ class Simulator:
                                                    top_angle_rad=angle)
         self.state.time_s = self.time_s
         self.last = self._evaluate(self.state)
+        self._on_bottom = self.on_bottom()
 
     def reset_members(self, members) -> None:
         """Restart ``members`` from a safe state: the configured initial motion under the
         current top speed, twisted to carry the steady torque on bit, with no lateral
-        deflection, with the bit at its current depth. The other members are untouched."""
+        deflection, with the bit at its current depth (on or off bottom: the hole is kept).
+        The other members are untouched."""
         members = np.asarray(members, dtype=int)
         if members.size == 0:
             return
@@ -161,21 +201,34 @@ class Simulator:
         bit_position = self.state.q[:, axial.columns] @ bit_row
         # Keep the bit where it was: the rigid mode alone carries it in the safe state.
         q[:, axial.columns.start] = bit_position / bit_row[0]
+        hole = self.hole_u()
+        off = bit_position < hole - ON_BOTTOM_TOLERANCE_M
+        q_rate[off, axial.columns.start] = 0.0                # off bottom: at rest
         fresh = self.integrator.initial_state(q, q_rate, speed, self.hook_load_command_n,
-                                              top_angle_rad=self.state.top_angle_rad)
+                                              top_angle_rad=self.state.top_angle_rad,
+                                              hole_u=hole)
         for name in ('q', 'q_rate', 'q_acceleration'):
             getattr(self.state, name)[members] = getattr(fresh, name)[members]
+        self.integrator.forget(members)
         self.last = self._evaluate(self.state)
 
     # -- stepping ------------------------------------------------------------------------
     def step(self) -> StepResult:
-        """Advance dt. Raises SimulationDiverged (the state is left as it was)."""
+        """Advance dt; a member whose step fails is retried on sub-steps (module docstring).
+
+        Raises SimulationDiverged naming the members that fail even on dt/16 (the state of
+        every member is then left as it was)."""
+        start_speed = self.state.top_speed_rad_per_s
         speed = self.top_drive.advance(self.top_speed_command_rad_per_s, self.dt)
         # A diverging member's NaN and inf are caught below (SimulationDiverged), not warned of.
         with np.errstate(invalid='ignore', over='ignore', divide='ignore'):
             new_state, result = self.integrator.step(self.state, speed, self.hook_load_command_n)
+            retries = np.zeros(self.members, dtype=int)
+            if not result.success:
+                new_state, result, retries = self._retry(new_state, result, start_speed, speed)
         if not result.success:
-            self.top_drive.speed_rad_per_s = self.state.top_speed_rad_per_s
+            self.integrator.discard_last_step()
+            self.top_drive.speed_rad_per_s = start_speed
             raise SimulationDiverged(result.message, new_state.time_s,
                                      np.flatnonzero(~result.converged))
         previous = self.last
@@ -183,7 +236,92 @@ class Simulator:
         self.impact_count += np.sum(self.last.contact.in_contact & ~previous.contact.in_contact,
                                     axis=1)
         self.lift_off_count += self.last.lifted & ~previous.lifted
-        return result
+        on_bottom = self.on_bottom()
+        self.landing_count += on_bottom & ~self._on_bottom
+        self._on_bottom = on_bottom
+        return replace(result, retries=retries)
+
+    def _retry(self, new_state: BatchState, result: StepResult, start_speed: float,
+               speed: float):
+        """Integrate each failed member again on sub-steps; the merged state and result."""
+        failed = np.flatnonzero(~result.converged)
+        retries = np.zeros(self.members, dtype=int)
+        still_failed = []
+        forces = result.forces
+        for member in failed:
+            outcome, attempts = self._substep(member, start_speed, speed)
+            retries[member] = attempts
+            self.retries += 1
+            self.retries_by_member[member] += 1
+            self.substeps += attempts
+            if outcome is None:
+                still_failed.append(member)
+                continue
+            state, evaluation = outcome
+            for name in ('q', 'q_rate', 'q_acceleration', 'hole_u'):
+                getattr(new_state, name)[member] = getattr(state, name)[0]
+            forces = _with_member(forces, member, evaluation)
+        self.integrator.forget(failed)
+        converged = np.ones(self.members, dtype=bool)
+        converged[still_failed] = False
+        message = result.message
+        if still_failed:
+            message = (f'{message}; members {still_failed} failed on sub-steps down to '
+                       f'dt/{2 ** SUBSTEP_LEVELS} too')
+        merged = replace(result, success=not still_failed, converged=converged,
+                         finite=result.finite | converged, message='' if not still_failed
+                         else message, forces=forces,
+                         error=np.where(converged & ~result.converged, 0.0, result.error))
+        return new_state, merged, retries
+
+    def _substep(self, member: int, start_speed: float, speed: float):
+        """Member ``member`` over [t, t + dt] on sub-steps: ((state, forces), attempts), or
+        (None, attempts) if dt / 2**SUBSTEP_LEVELS fails. The top speed is interpolated
+        linearly (the top drive's acceleration is constant over the step)."""
+        units = 2 ** SUBSTEP_LEVELS
+        state = self.state.take([member])
+        done, level, attempts, evaluation = 0, 1, 0, None
+        while done < units:
+            size = units >> level
+            integrator = self._substep_integrator(level, member)
+            target = start_speed + (speed - start_speed) * (done + size) / units
+            new, result = integrator.step(state, target, self.hook_load_command_n)
+            attempts += 1
+            if result.success:
+                state, evaluation = new, result.forces
+                done += size
+                if level > 1 and done % (2 * size) == 0:
+                    level -= 1                          # back up towards the full step
+            elif level == SUBSTEP_LEVELS:
+                return None, attempts
+            else:
+                level += 1
+        return (state, evaluation), attempts
+
+    def _substep_integrator(self, level: int, member: int) -> NewmarkIntegrator:
+        """The integrator of dt / 2**level for one member (built once per level)."""
+        integrator = self._substep_integrators.get(level)
+        if integrator is None:
+            integrator = self.integrator.with_time_step(self.dt / 2 ** level)
+            self._substep_integrators[level] = integrator
+        germ = self.integrator.germ
+        integrator.germ = None if germ is None else germ[member:member + 1]
+        integrator.forget(None)
+        return integrator
+
+    def hole_u(self) -> np.ndarray:
+        """The hole bottom as the bit's axial displacement, (m,) (m)."""
+        if self.state.hole_u is None:
+            return self._bit_u()
+        return self.state.hole_u
+
+    def on_bottom(self) -> np.ndarray:
+        """(m,) True where the bit is on the hole bottom (within 1 um)."""
+        return self._bit_u() >= self.hole_u() - ON_BOTTOM_TOLERANCE_M
+
+    def _bit_u(self) -> np.ndarray:
+        axial = self.system.blocks['axial']
+        return self.state.q[:, axial.columns] @ axial.shapes[self.system.bit_node]
 
     @property
     def time_s(self) -> float:
@@ -212,8 +350,11 @@ class Simulator:
         axial, torsion = system.blocks['axial'], system.blocks['torsional']
         bit_u = state.q[:, axial.columns] @ axial.shapes[bit]              # every member
         bit_angle = state.q[:, torsion.columns] @ torsion.shapes[bit]
-        rop = forces.rop_m_per_s
+        velocity = forces.rop_m_per_s
+        on_bottom = self.on_bottom()
+        rop = np.where(on_bottom, np.maximum(velocity, 0.0), 0.0)    # the hole deepens
         omega = forces.bit_speed_rad_per_s
+        length = system.model.mesh.total_length_m
         e = self.law.e
         fields = np.stack([st.rows[[0, 1, 2]] for st in system.stations]) if system.stations \
             else np.zeros((0, 3, system.n_dofs))
@@ -221,7 +362,7 @@ class Simulator:
             else np.zeros((0, 3, system.n_dofs))
         return Observation(
             time_s=state.time_s,
-            depth_m=system.model.mesh.total_length_m + bit_u,
+            depth_m=length + bit_u,
             rop_m_per_s=rop,
             angle_rad=state.top_angle_rad + bit_angle,
             speed_rad_per_s=omega,
@@ -243,6 +384,11 @@ class Simulator:
             in_contact=forces.contact.in_contact,
             impacts_so_far=self.impact_count.copy(),
             lift_offs_so_far=self.lift_off_count.copy(),
+            bit_depth_m=length + bit_u,
+            hole_depth_m=length + self.hole_u(),
+            on_bottom=on_bottom,
+            bit_axial_velocity_m_per_s=velocity,
+            landings_so_far=self.landing_count.copy(),
         )
 
     # -- initial state -------------------------------------------------------------------
@@ -296,6 +442,35 @@ class Simulator:
         return np.linalg.solve(stiffness, load)
 
     def _evaluate(self, state: BatchState) -> ForceEvaluation:
-        fields = Kinematics.of(self.system, state.q, state.q_rate, state.q_acceleration,
-                               state.top_speed_rad_per_s, state.top_acceleration_rad_per_s2)
-        return self.forces.evaluate(fields, self.integrator.germ)
+        return self.integrator.evaluate(state)
+
+
+def _with_member(evaluation: ForceEvaluation, member: int,
+                 single: ForceEvaluation) -> ForceEvaluation:
+    """``evaluation`` with row ``member`` replaced by the one-member ``single``."""
+    def put(array, row):
+        out = array.copy()
+        out[member] = row[0]
+        return out
+
+    tangent = None
+    if evaluation.contact_tangent is not None or single.contact_tangent is not None:
+        shape = evaluation.contact.in_contact.shape + (2, 2)
+        mine = (evaluation.contact_tangent if evaluation.contact_tangent is not None
+                else np.zeros(shape))
+        row = (single.contact_tangent if single.contact_tangent is not None
+               else np.zeros((1,) + shape[1:]))
+        tangent = put(mine, row)
+    contact = ContactForces(put(evaluation.contact.radial_force_n,
+                                single.contact.radial_force_n),
+                            put(evaluation.contact.in_contact, single.contact.in_contact))
+    return replace(evaluation, full=put(evaluation.full, single.full),
+                   modal=put(evaluation.modal, single.modal),
+                   weight_on_bit_n=put(evaluation.weight_on_bit_n, single.weight_on_bit_n),
+                   torque_on_bit_nm=put(evaluation.torque_on_bit_nm, single.torque_on_bit_nm),
+                   rop_m_per_s=put(evaluation.rop_m_per_s, single.rop_m_per_s),
+                   bit_speed_rad_per_s=put(evaluation.bit_speed_rad_per_s,
+                                           single.bit_speed_rad_per_s),
+                   lifted=put(evaluation.lifted, single.lifted),
+                   bit_jacobian=put(evaluation.bit_jacobian, single.bit_jacobian),
+                   contact=contact, contact_tangent=tangent)

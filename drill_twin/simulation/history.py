@@ -9,7 +9,10 @@ from drill_twin.dynamics.simulator import Observation
 
 # Per-member channels: name -> (Observation attribute, unit) (arrays (m, n_t)).
 BIT_CHANNELS = {
-    'bit_depth_m': 'depth_m',
+    'bit_depth_m': 'bit_depth_m',
+    'hole_depth_m': 'hole_depth_m',
+    'bit_on_bottom': 'on_bottom',
+    'bit_axial_velocity_m_per_s': 'bit_axial_velocity_m_per_s',
     'rop_m_per_s': 'rop_m_per_s',
     'bit_angle_rad': 'angle_rad',
     'bit_speed_rad_per_s': 'speed_rad_per_s',
@@ -21,6 +24,7 @@ BIT_CHANNELS = {
     'hook_position_m': 'hook_position_m',
     'impacts_so_far': 'impacts_so_far',
     'lift_offs_so_far': 'lift_offs_so_far',
+    'landings_so_far': 'landings_so_far',
 }
 SHARED_CHANNELS = {'top_speed_rad_per_s': 'top_speed_rad_per_s', 'hook_load_n': 'hook_load_n'}
 STATION_FIELDS = ('axial', 'v', 'w')
@@ -35,7 +39,8 @@ class SimulationResult:
     station_displacement_m, station_velocity_m_per_s, station_acceleration_m_per_s2:
     (m, n_s, 3, n_t) for (axial, v, w); station_spin_rate_rad_per_s: (m, n_s, 3, n_t) for
     (theta_x', theta_y', theta_z'); impact_count, lift_off_count: (m,) counted at every step;
-    time_step_s, steps, iterations, wall_time_s.
+    time_step_s, steps, iterations, wall_time_s; retries: member-steps integrated again on
+    sub-steps (Simulator.retries).
     """
 
     time_s: np.ndarray
@@ -53,6 +58,7 @@ class SimulationResult:
     iterations: int = 0
     wall_time_s: float = 0.0
     metadata: dict = field(default_factory=dict)
+    retries: int = 0
 
     @property
     def members(self) -> int:
@@ -84,6 +90,7 @@ class History:
         self.time_s = np.zeros(n_records)
         self.channels = {name: np.zeros((members, n_records)) for name in BIT_CHANNELS}
         self.channels['bit_lifted_off'] = np.zeros((members, n_records), dtype=bool)
+        self.channels['bit_on_bottom'] = np.zeros((members, n_records), dtype=bool)
         self.channels['contact_nodes'] = np.zeros((members, n_records), dtype=int)
         self.channels['max_contact_force_n'] = np.zeros((members, n_records))
         self.shared = {name: np.zeros(n_records) for name in SHARED_CHANNELS}
@@ -110,7 +117,7 @@ class History:
         self.count += 1
 
     def result(self, impact_count, lift_off_count, steps, iterations, wall_time_s,
-               metadata=None) -> SimulationResult:
+               metadata=None, retries: int = 0) -> SimulationResult:
         n = self.count
         return SimulationResult(
             time_s=self.time_s[:n].copy(),
@@ -124,4 +131,4 @@ class History:
             impact_count=np.asarray(impact_count).copy(),
             lift_off_count=np.asarray(lift_off_count).copy(),
             time_step_s=self.time_step_s, steps=steps, iterations=iterations,
-            wall_time_s=wall_time_s, metadata=dict(metadata or {}))
+            wall_time_s=wall_time_s, metadata=dict(metadata or {}), retries=int(retries))

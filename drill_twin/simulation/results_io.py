@@ -17,13 +17,16 @@ from drill_twin.simulation.history import SimulationResult
 COLUMNS = {
     'time_s': 'simulated time (s)',
     'bit_depth_m': 'bit position along the string, down from the top\'s initial position (m)',
-    'rop_m_per_s': 'rate of penetration, du_bit/dt (m/s)',
+    'hole_depth_m': 'depth of the hole bottom, the deepest the bit has been (same reference) (m)',
+    'bit_on_bottom': '1 when the bit is on the hole bottom (within 1 um), 0 off bottom',
+    'rop_m_per_s': 'rate of penetration: the rate the hole deepens, 0 off bottom (m/s)',
+    'bit_axial_velocity_m_per_s': 'axial velocity of the bit, du_bit/dt, > 0 down (m/s)',
     'bit_angle_rad': 'bit rotation angle (rad)',
     'bit_speed_rad_per_s': 'bit rotation speed (rad/s)',
     'weight_on_bit_n': 'axial force of the rock on the bit, f_bit; negative = compression (N)',
     'torque_on_bit_nm': 'torque of the rock on the bit, t_bit; negative = resisting (N m)',
     'depth_of_cut_m_per_rad': 'regularised depth of cut ROP omega / (omega^2 + e^2) (m/rad)',
-    'bit_lifted_off': '1 when the bit is off the rock (f_bit would be >= 0)',
+    'bit_lifted_off': '1 when the rock does not push on the bit (off bottom, or it would pull)',
     'top_torque_nm': 'torque the top drive applies to the string (N m)',
     'top_speed_rad_per_s': 'top-drive rotation speed (rad/s)',
     'hook_load_n': 'hook load applied at the top (N)',
@@ -32,6 +35,7 @@ COLUMNS = {
     'max_contact_force_n': 'largest radial wall force over the nodes (N)',
     'impacts_so_far': 'borehole impacts (contact onsets, all nodes) since the start',
     'lift_offs_so_far': 'bit lift-offs since the start',
+    'landings_so_far': 'landings of the bit on the hole bottom since the start',
 }
 STATION_COLUMNS = {
     'u_m': 'axial displacement (m)', 'v_m': 'lateral displacement v, along y (m)',

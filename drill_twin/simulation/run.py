@@ -52,4 +52,4 @@ def run_simulation(config: DrillStringConfig, duration_s: float, *, members: int
             progress(steps * dt, duration_s)
         counters = simulator.integrator.counters
         return history.result(simulator.impact_count, simulator.lift_off_count, counters.steps,
-                              counters.iterations, wall)
+                              counters.iterations, wall, retries=simulator.retries)
