@@ -29,6 +29,9 @@ CONTACT_FORCES = '/drill_twin/contact/forces'                # std_msgs/msg/Floa
 KPI_STICK_SLIP = '/drill_twin/kpi/stick_slip_severity'       # std_msgs/msg/Float64, -
 KPI_MSE = '/drill_twin/kpi/mechanical_specific_energy'       # std_msgs/msg/Float64, Pa
 KPI_ROP = '/drill_twin/kpi/rop_m_per_h'                      # std_msgs/msg/Float64, m/h
+HOLE_DEPTH = '/drill_twin/hole/depth'                        # std_msgs/msg/Float64, m
+"""The hole's depth (m), where the bit has drilled to: the bit's depth (the bit state's
+bit_axial position) is smaller while the bit is lifted off bottom."""
 ENSEMBLE_MEAN = '/drill_twin/ensemble/bit_state/mean'        # sensor_msgs/msg/JointState
 ENSEMBLE_LOWER = '/drill_twin/ensemble/bit_state/lower'      # 2.5 % quantile, JointState
 ENSEMBLE_UPPER = '/drill_twin/ensemble/bit_state/upper'      # 97.5 % quantile, JointState

@@ -367,6 +367,11 @@ def test_wrench_stations_contacts_kpis(recorded):
         assert len(values) >= DURATION_S * 10 - 1 and _finite(values), topic
     assert all(0 < m.data < 40 for m in received[itf.KPI_ROP][1:])      # m/h
     assert all(m.data >= 0 for m in received[itf.KPI_STICK_SLIP])
+    # Drilling: the hole deepens, never gets shallower, and the bit is at its bottom.
+    hole = np.array([m.data for m in received[itf.HOLE_DEPTH]])
+    assert len(hole) >= DURATION_S * 10 - 1 and np.all(np.diff(hole) >= 0) and hole[-1] > 1600
+    bit_depth = received[itf.BIT_STATE][-1].position[0]
+    assert abs(hole[-1] - bit_depth) < 0.01
     health = [s for m in received[itf.DIAGNOSTICS] for s in m.status
               if s.name == 'drill_twin: twin health']
     assert health                                  # from a wall-clock timer, and at the end

@@ -112,15 +112,18 @@ def test_the_highest_hook_load_lifts_the_string_no_faster_than_a_block(config):
     engine.set_hook_load(envelope.hook_load_max_n)
     engine.kpi_window_s = 1.0
     snapshots = _advance(engine, 300)
-    rop = np.array([s.bit.rop_m_per_s for s in snapshots])
-    assert rop[-1] < 0                                        # lifted: rising
-    assert np.all(-rop < PLAUSIBLE_BLOCK_SPEED_M_PER_S)
+    velocity = np.array([s.observation.bit_axial_velocity_m_per_s[0] for s in snapshots])
+    assert velocity[-1] < 0                                   # lifted: rising
+    assert np.all(-velocity < PLAUSIBLE_BLOCK_SPEED_M_PER_S)
     assert not any(e.kind in ('implausible', 'diverged') for s in snapshots for e in s.events)
-    # Off the rock no rock is cut: the MSE is not computable (not 0, not a number), the
-    # stick-slip severity and the (negative) ROP still are.
     last = snapshots[-1]
+    assert last.observation.bit_depth_m[0] < last.observation.hole_depth_m[0]   # off bottom
+    assert any(e.kind == 'lift_off' for s in snapshots for e in s.events)
+    # Off bottom the hole does not deepen (ROP 0) and no rock is cut: the MSE is not
+    # computable (not 0, not a number); the stick-slip severity still is.
+    assert last.bit.rop_m_per_s == 0.0
     assert last.mse_pa is None
-    assert last.rop_m_per_h is not None and last.rop_m_per_h < 0
+    assert last.rop_m_per_h is not None and last.rop_m_per_h >= 0
     assert last.stick_slip_severity is not None and last.stick_slip_severity >= 0
 
 
@@ -210,10 +213,11 @@ def test_every_bound_of_the_guard_trips(config):
     assert 'lateral displacement' in reason and 'clearance plus contact penetration' in reason
 
     simulator.state = saved.copy()
-    simulator.hole_depth_m = np.array([1599.0])      # a hole shallower than the bit
+    simulator.state.hole_u = simulator.hole_u() - 1.0        # a hole 1 m shallower than the bit
+    assert simulator.hole_depth_m[0] < simulator.observe().bit_depth_m[0] - 0.9
     (reason,) = guard.check(simulator).values()
     assert 'below the bottom of the hole' in reason
-    del simulator.hole_depth_m
+    simulator.state = saved.copy()
 
     torsion = system.blocks['torsional'].columns
     simulator.state.q_rate[0, torsion] = 0.0

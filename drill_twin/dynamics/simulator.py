@@ -43,6 +43,10 @@ class SimulationDiverged(RuntimeError):
         self.time_s = time_s
         self.members = tuple(int(m) for m in members)
 
+    def __reduce__(self):
+        # Picklable across process pools (Monte Carlo workers) with its time and members.
+        return (type(self), (str(self), self.time_s, self.members))
+
 
 SUBSTEP_LEVELS = 4
 """A failed step is retried on sub-steps down to dt / 2**SUBSTEP_LEVELS (dt/16)."""
@@ -314,6 +318,16 @@ class Simulator:
         if self.state.hole_u is None:
             return self._bit_u()
         return self.state.hole_u
+
+    @property
+    def hole_depth_m(self) -> np.ndarray:
+        """The hole's depth per member, (m,) (m): where the bit has drilled to."""
+        return self.system.model.mesh.total_length_m + self.hole_u()
+
+    def hole_rop_m_per_s(self, bit_axial_velocity_m_per_s: np.ndarray) -> np.ndarray:
+        """The rate the hole deepens (m/s), (m,): the bit's axial velocity while it is on
+        bottom and moving down, else 0."""
+        return np.where(self.on_bottom(), np.maximum(bit_axial_velocity_m_per_s, 0.0), 0.0)
 
     def on_bottom(self) -> np.ndarray:
         """(m,) True where the bit is on the hole bottom (within 1 um)."""

@@ -117,6 +117,7 @@ def synthetic_messages(duration_s: float = 10.0, rate_hz: float = 100.0,
         yield TimedMessage(itf.KPI_MSE, _float64(abs(wob) / 0.05 + 2.0 * math.pi * abs(tob)
                                                  * bit_speed / (0.05 * max(rop, 1e-4))), t_ns)
         yield TimedMessage(itf.KPI_ROP, _float64(rop * 3600.0), t_ns)
+        yield TimedMessage(itf.HOLE_DEPTH, _float64(depth), t_ns)
         spread = (0.05 * abs(wob), 0.3 * top_speed, 0.2 * rop)
         for topic, sign in ((itf.ENSEMBLE_MEAN, 0.0), (itf.ENSEMBLE_LOWER, -1.96),
                             (itf.ENSEMBLE_UPPER, 1.96)):

@@ -54,6 +54,7 @@ def twin_topics(stations_m: Iterable[float] = ()) -> dict[str, TopicSpec]:
         itf.KPI_STICK_SLIP: TopicSpec(FLOAT64, state),
         itf.KPI_MSE: TopicSpec(FLOAT64, state),
         itf.KPI_ROP: TopicSpec(FLOAT64, state),
+        itf.HOLE_DEPTH: TopicSpec(FLOAT64, state),
         itf.ENSEMBLE_MEAN: TopicSpec(JOINT_STATE, state),
         itf.ENSEMBLE_LOWER: TopicSpec(JOINT_STATE, state),
         itf.ENSEMBLE_UPPER: TopicSpec(JOINT_STATE, state),

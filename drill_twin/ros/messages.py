@@ -109,7 +109,8 @@ def tick_messages(snapshot: TwinSnapshot, stations_m, time_ns: int):
 def kpi_messages(snapshot: TwinSnapshot):
     """(topic, message) of the KPIs that could be computed (a None KPI is not published)."""
     kpis = ((itf.KPI_STICK_SLIP, snapshot.stick_slip_severity), (itf.KPI_MSE, snapshot.mse_pa),
-            (itf.KPI_ROP, snapshot.rop_m_per_h))
+            (itf.KPI_ROP, snapshot.rop_m_per_h),
+            (itf.HOLE_DEPTH, float(snapshot.observation.hole_depth_m[0])))
     return [(topic, scalar(value)) for topic, value in kpis if value is not None]
 
 

@@ -192,6 +192,7 @@ class TwinNode(Node):
                   itf.CONTACT_FORCES: (Float64MultiArray, state),
                   itf.KPI_STICK_SLIP: (Float64, state), itf.KPI_MSE: (Float64, state),
                   itf.KPI_ROP: (Float64, state),
+                  itf.HOLE_DEPTH: (Float64, state),
                   itf.DIAGNOSTICS: (DiagnosticArray, itf.DIAGNOSTICS_QOS)}
         if self.engine.ensemble.members:
             for topic in (itf.ENSEMBLE_MEAN, itf.ENSEMBLE_LOWER, itf.ENSEMBLE_UPPER):

@@ -129,6 +129,7 @@ class TwinEngine:
         self.kpi_window_s = float(kpi_window_s)
         self._events = []
         self._last = self.simulator.observe()
+        self._on_bottom = bool(self.simulator.on_bottom()[0])
         self._wall_per_tick = deque(maxlen=100)
         self._iterations = deque(maxlen=100)
         self.rejected_commands = 0
@@ -236,7 +237,8 @@ class TwinEngine:
             self.step_index += 1
             now = self.simulator.last                    # the step's forces: cheap to watch
             self._watch(before, now)
-            self._window.append((self.time_s, now.bit_speed_rad_per_s[0], now.rop_m_per_s[0],
+            rop = self.simulator.hole_rop_m_per_s(now.rop_m_per_s)[0]   # the hole's rate
+            self._window.append((self.time_s, now.bit_speed_rad_per_s[0], rop,
                                  now.weight_on_bit_n[0], now.torque_on_bit_nm[0]))
         self._last = self.simulator.observe()
         self._wall_per_tick.append(time.perf_counter() - start)
@@ -279,11 +281,22 @@ class TwinEngine:
             self._events.append(TwinEvent('contact_end', 'info', t,
                                           f'contact at x = {x[node]:.1f} m ended',
                                           {'x_m': f'{x[node]:.3f}'}))
-        if now.lifted[0] and not before.lifted[0]:
-            self._events.append(TwinEvent('lift_off', 'warn', t, 'the bit lifted off the rock',
-                                          {'rop_m_per_s': f'{now.rop_m_per_s[0]:.6g}'}))
-        if before.lifted[0] and not now.lifted[0]:
-            self._events.append(TwinEvent('landing', 'info', t, 'the bit is back on the rock'))
+        on_bottom = bool(self.simulator.on_bottom()[0])
+        if on_bottom != self._on_bottom:
+            hole = float(self.simulator.hole_depth_m[0])
+            if on_bottom:           # an axial impact on the rock: speed before, force after
+                speed = float(before.rop_m_per_s[0])
+                self._events.append(TwinEvent(
+                    'landing', 'warn', t, f'the bit landed on bottom at {hole:.2f} m '
+                    f'({speed:.3g} m/s, weight on bit {-now.weight_on_bit_n[0] / 1e3:.3g} kN)',
+                    {'hole_depth_m': f'{hole:.3f}', 'speed_m_per_s': f'{speed:.6g}',
+                     'force_n': f'{now.weight_on_bit_n[0]:.6g}'}))
+            else:
+                self._events.append(TwinEvent(
+                    'lift_off', 'warn', t, f'the bit lifted off bottom at {hole:.2f} m',
+                    {'hole_depth_m': f'{hole:.3f}',
+                     'speed_m_per_s': f'{now.rop_m_per_s[0]:.6g}'}))
+            self._on_bottom = on_bottom
 
     # -- results -------------------------------------------------------------------------
     def kpi_window_samples(self) -> np.ndarray:

@@ -206,7 +206,7 @@ def _integrate(config, system, spec: StudySpec, indices, germs, leading: int) ->
             j = (k - first) // every
             forces = simulator.last
             time_s[j] = simulator.time_s
-            series['rop_m_per_s'][:, j] = forces.rop_m_per_s
+            series['rop_m_per_s'][:, j] = simulator.hole_rop_m_per_s(forces.rop_m_per_s)
             series['bit_speed_rad_per_s'][:, j] = forces.bit_speed_rad_per_s
             series['weight_on_bit_n'][:, j] = forces.weight_on_bit_n
             series['torque_on_bit_nm'][:, j] = forces.torque_on_bit_nm
