@@ -11,6 +11,10 @@ the string's weight), set down again; back to the paper's point. A step that fai
 dt/16 is handled as the twin does (the member restarted from a safe state, the step
 retried). Prints per phase the retried member-steps, sub-steps, restarts, the lowest bit speed
 and how many members were off bottom, and the wall time. ``--scale`` shortens every phase.
+
+The hook load is a force: 20 s at the weight + 40 kN, then 20 s at the weight - 30 kN, fling
+the string some 140 m up; back at the drilling hook load it falls and tags bottom at about
+14 m/s (a brutal landing, far outside what a driller does, kept as a stress test).
 """
 from __future__ import annotations
 
