@@ -270,7 +270,8 @@ class Simulator:
         converged[still_failed] = False
         message = result.message
         if still_failed:
-            message = (f'{message}; members {still_failed} failed on sub-steps down to '
+            failed_members = [int(m) for m in still_failed]
+            message = (f'{message}; members {failed_members} failed on sub-steps down to '
                        f'dt/{2 ** SUBSTEP_LEVELS} too')
         merged = replace(result, success=not still_failed, converged=converged,
                          finite=result.finite | converged, message='' if not still_failed
