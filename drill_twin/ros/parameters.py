@@ -32,12 +32,14 @@ PARAMETERS = (
                   safe=False),
     ParameterSpec('seed', 0, 'seed of the ensemble (member j draws from the stream (seed, j))',
                   safe=False, low=0, high=2 ** 31 - 1),
-    ParameterSpec('time_step_s', 0.01, 'model time step of the twin (s); every tick advances '
-                  '1 / rate_hz in whole steps. 10 ms costs half the configuration\'s 5 ms '
+    ParameterSpec('time_step_s', 0.01, 'model time step of the twin (s); a tick takes the '
+                  'steps whose time the wall clock has reached (a step longer than a tick '
+                  'waits for it). 10 ms costs half the configuration\'s 5 ms '
                   '(offline runs) for 0.2 % error on the stick-slip swing; 0: the '
                   'configuration\'s', safe=False, low=0.0, high=0.1),
-    ParameterSpec('rate_hz', 100.0, 'tick rate of the wall-clock timer; every tick advances '
-                  '1 / rate_hz of simulated time in model steps', safe=False, low=1.0, high=1000.0),
+    ParameterSpec('rate_hz', 100.0, 'tick rate of the wall-clock timer; a tick advances the '
+                  'twin to the wall clock in model steps (never past it)', safe=False, low=1.0,
+                  high=1000.0),
     ParameterSpec('fast', False, 'run as fast as possible and publish /clock (also with '
                   'use_sim_time)', safe=False),
     ParameterSpec('duration_s', 0.0, 'stop after this much simulated time (0: run until '
