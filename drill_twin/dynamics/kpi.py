@@ -19,18 +19,6 @@ def stick_slip_severity(bit_speed_rad_per_s: np.ndarray, axis: int = -1) -> np.n
         return np.where(mean > 0, spread / (2.0 * mean), np.nan)
 
 
-def moving_stick_slip_severity(bit_speed_rad_per_s: np.ndarray, window_samples: int) -> np.ndarray:
-    """SSI over the trailing ``window_samples`` at every sample, shape like the input (n_t,).
-
-    Samples before a full window use what they have.
-    """
-    speed = np.asarray(bit_speed_rad_per_s, dtype=float)
-    out = np.empty_like(speed)
-    for k in range(speed.size):
-        out[k] = stick_slip_severity(speed[max(0, k - window_samples + 1):k + 1])
-    return out
-
-
 def bit_area_m2(bit_diameter_m: float) -> float:
     """Cutting area of the bit (the hole cross-section), m^2."""
     return math.pi * bit_diameter_m ** 2 / 4.0
@@ -59,11 +47,3 @@ def describe(values: np.ndarray) -> dict[str, float]:
     values = np.asarray(values, dtype=float)
     return {'mean': float(np.mean(values)), 'min': float(np.min(values)),
             'max': float(np.max(values)), 'std': float(np.std(values))}
-
-
-def onsets(flags: np.ndarray, axis: int = -1) -> np.ndarray:
-    """Number of False -> True transitions along ``axis``."""
-    flags = np.asarray(flags, dtype=bool)
-    before = np.take(flags, np.arange(flags.shape[axis] - 1), axis=axis)
-    after = np.take(flags, np.arange(1, flags.shape[axis]), axis=axis)
-    return np.sum(after & ~before, axis=axis)

@@ -42,7 +42,7 @@ g(t) = -Phi^T (M psi theta_top'' + C psi theta_top') carries the imposed top rot
 from __future__ import annotations
 
 import copy
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.linalg as la
@@ -128,7 +128,6 @@ class Counters:
     force_evaluations: int = 0
     bit_law_evaluations: int = 0
     failed_steps: int = 0
-    history: list = field(default_factory=list, repr=False)
 
 
 @dataclass(frozen=True)

@@ -141,16 +141,6 @@ class ReducedSystem:
         """Slice of field ``FIELD_ORDER[position]`` in the field-wise DOFs."""
         return slice(position * self.n_nodes, (position + 1) * self.n_nodes)
 
-    def to_field_wise(self, vector: np.ndarray) -> np.ndarray:
-        """A vector (..., n_dofs) in model order -> field-wise order."""
-        return vector[..., self.permutation]
-
-    def to_model_order(self, vector: np.ndarray) -> np.ndarray:
-        """A vector (..., n_dofs) in field-wise order -> model order."""
-        out = np.empty_like(vector)
-        out[..., self.permutation] = vector
-        return out
-
     def physical(self, q: np.ndarray) -> np.ndarray:
         """Field-wise u = Phi q for q of shape (m, n) (without the driven rotation)."""
         out = np.zeros(q.shape[:-1] + (self.n_dofs,))
