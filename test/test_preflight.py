@@ -87,13 +87,15 @@ def test_a_hook_load_above_the_weight_is_refused(default_analysis):
     assert point.weight_on_bit_n == pytest.approx(-120e3)
 
 
-def test_a_law_that_diverges_at_once_is_refused_by_the_short_run():
-    """a4 = 7e8 N rad: the steady torque (308 kN m) is within the string's capacity, but the
-    bit-rock equation has no solution at the first step."""
-    config = load_config(None, ['bit_rock.a4_n_rad=7e8'])
+def test_a_model_that_fails_at_once_is_refused_by_the_short_run():
+    """A Newton solve allowed one iteration at an unreachable tolerance: the operating point
+    is the paper's (it passes), but the first step fails even on sub-steps down to dt/16.
+    (a4 = 7e8 N rad, whose bit equation had no solution at the first step, integrates since
+    the bit's equation is solved as a monotone graph.)"""
+    config = load_config(None, ['integration.max_iterations=1', 'integration.tolerance=1e-14'])
     model, _, system = build_model(config)
     check_operating_point(config, model)
-    with pytest.raises(PreflightError, match=r'cannot be integrated: .* at t = 0\.01 s'):
+    with pytest.raises(PreflightError, match=r'cannot be integrated: .* at t = 0\.005 s'):
         check_short_run(config, system)
 
 
