@@ -131,8 +131,11 @@ def test_log_write_failure_mid_run(env, tmp_path):
         resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
 
     logs = tmp_path / 'logs'
+    # Health at 10 Hz of wall time flushes a chunk every 0.1 s, so complete chunks precede the
+    # limit however fast the twin runs (at 1 Hz a fast twin's first chunk alone passes 40 kB).
     result = subprocess.run([DRILL_TWIN, 'twin', '--duration', '2', '--fast', '--ensemble', '2',
-                             '--log-dir', str(logs)], env=env, capture_output=True, text=True,
+                             '--log-dir', str(logs), '--ros-args', '-p', 'health_rate_hz:=10.0'],
+                            env=env, capture_output=True, text=True,
                             timeout=WAIT_S, stdin=subprocess.DEVNULL, cwd=REPO,
                             preexec_fn=limit_file_size)
     assert result.returncode == 0, result.stderr
