@@ -9,6 +9,7 @@ import subprocess
 import sys
 
 import pytest
+from cli_output import assert_one_line
 
 MONTECARLO = ('montecarlo', '--delta', '0.01', '--samples', '2', '--out', 'study')
 
@@ -19,12 +20,6 @@ def run_cli(*args, cwd):
                           stdin=subprocess.DEVNULL)
 
 
-def assert_one_line(result, *words):
-    lines = result.stderr.strip().splitlines()
-    assert result.returncode == 2 and len(lines) == 1, result.stderr[-3000:]
-    assert lines[0].startswith('drill-twin: '), lines[0]
-    for word in words:
-        assert word in lines[0], lines[0]
 
 
 @pytest.mark.parametrize('kind', ['binary', 'directory'])

@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 
 import pytest
+from cli_output import assert_one_line
 from conftest import ros_variables
 
 from drill_twin.ros.parameters import (ParameterError, check_parameter, model_overrides,
@@ -32,12 +33,6 @@ def run_twin(*args, env, cwd):
                           env=env, cwd=cwd, timeout=300, stdin=subprocess.DEVNULL)
 
 
-def assert_one_line(result, *words):
-    lines = result.stderr.strip().splitlines()
-    assert result.returncode == 2 and len(lines) == 1, result.stderr[-3000:]
-    assert lines[0].startswith('drill-twin: '), lines[0]
-    for word in words:
-        assert word in lines[0], lines[0]
 
 
 # -- parameters, through the command -----------------------------------------------------------
