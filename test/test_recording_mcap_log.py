@@ -226,6 +226,22 @@ def test_serialized_write_matches(tmp_path):
     assert item.message == clock and (item.log_time_ns, item.publish_time_ns) == (5, 4)
 
 
+def test_chunks_are_flushed_by_log_time_however_fast_the_writer(tmp_path):
+    """A twin far faster than real time: one chunk per flush interval of log time, written
+    within microseconds of wall time (so the wall clock alone would never flush)."""
+    from std_msgs.msg import Float64
+
+    path = tmp_path / 'fast.mcap'
+    with McapLog(path, flush_interval_s=0.25) as log:
+        log.add_topic(itf.KPI_ROP, 'std_msgs/msg/Float64')
+        for i in range(100):                                  # 0 ... 0.99 s at 100 Hz
+            log.write(itf.KPI_ROP, Float64(data=float(i)), 10_000_000 * i)
+    with open(path, 'rb') as stream:
+        chunks = make_reader(stream).get_summary().chunk_indexes
+    starts = sorted(chunk.message_start_time / 1e9 for chunk in chunks)
+    assert starts == pytest.approx([0.0, 0.25, 0.5, 0.75])
+
+
 KILLED_WRITER = """
 import sys
 from drill_twin.recording.mcap_log import McapLog

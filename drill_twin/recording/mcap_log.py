@@ -44,7 +44,9 @@ twin's second of data is 100-200 KiB, and larger chunks compress only 1 % better
 DEFAULT_COMPRESSION = 'zstd'
 """Chunk compression: zstd stores the twin's data in about a fifth of the space."""
 DEFAULT_FLUSH_INTERVAL_S = 1.0
-"""Wall-clock seconds after which an open chunk is written out even if not full."""
+"""Seconds, of the wall clock or of log time whichever passes first, after which an open
+chunk is written out even if not full: a crash loses at most that much of the log, also when
+the twin runs faster than real time."""
 
 _UINT64_END = 1 << 64
 _COMPRESSION = {'none': CompressionType.NONE, 'zstd': CompressionType.ZSTD,
@@ -114,8 +116,9 @@ class McapLog:
 
     :param path: file to create (overwritten if it exists).
     :param chunk_size: bytes of messages per chunk; smaller loses less on a crash.
-    :param flush_interval_s: wall-clock seconds after which an open chunk is written out;
-        ``None`` writes chunks only when full.
+    :param flush_interval_s: seconds of the wall clock or of log time (whichever passes
+        first) after which an open chunk is written out; ``None`` writes chunks only when
+        full.
     :param compression: 'zstd' (default), 'lz4' or 'none' per chunk.
     """
 
@@ -145,6 +148,7 @@ class McapLog:
             self._raw.close()
             raise
         self._last_flush_ns = time.monotonic_ns()
+        self._last_flush_log_ns: int | None = None     # log time of the open chunk's start
         self._finished = False
 
     # -- context manager -------------------------------------------------------------------
@@ -257,14 +261,17 @@ class McapLog:
                            else _check_time(publish_time_ns, 'publish_time_ns'))
         with self._lock:
             self._check_open()
+            if (self._flush_interval_ns is not None and self._last_flush_log_ns is not None
+                    and log_time_ns - self._last_flush_log_ns >= self._flush_interval_ns):
+                self._flush_locked()                 # a chunk spans one interval of log time
             self._writer.add_message(channel_id=channel_id, log_time=log_time_ns, data=data,
                                      publish_time=publish_time_ns, sequence=0)
             self._counts[topic] += 1
             if self._flush_interval_ns is not None:
-                now = time.monotonic_ns()
-                if now - self._last_flush_ns >= self._flush_interval_ns:
-                    self._writer.flush()
-                    self._last_flush_ns = now
+                if self._last_flush_log_ns is None:
+                    self._last_flush_log_ns = log_time_ns
+                if time.monotonic_ns() - self._last_flush_ns >= self._flush_interval_ns:
+                    self._flush_locked()
 
     # -- ending ----------------------------------------------------------------------------
 
@@ -272,8 +279,12 @@ class McapLog:
         """Write out the open chunk now (the data then survive a crash)."""
         with self._lock:
             self._check_open()
-            self._writer.flush()
-            self._last_flush_ns = time.monotonic_ns()
+            self._flush_locked()
+
+    def _flush_locked(self) -> None:
+        self._writer.flush()
+        self._last_flush_ns = time.monotonic_ns()
+        self._last_flush_log_ns = None
 
     def finish(self) -> None:
         """Write the summary and footer and close the file; later calls do nothing."""
