@@ -130,14 +130,17 @@ class PISpeedLoop:
         self.limit = float(limit_nm)
         self.integral_torque_nm = float(integral_torque_nm)
 
-    def solve(self, inertia: float, omega_n: float, setpoint: float, dt: float,
+    def solve(self, inertia: float, omega_n: float, setpoint: tuple[float, float], dt: float,
               string_torque_0: float, string_slope: float) -> tuple[float, float, bool]:
-        """(omega_{n+1}, T_m, saturated) of J (omega - omega_n)/dt = T_m - (T_0 + Z omega);
-        updates the integral."""
+        """(omega_{n+1}, T_m, saturated) of J (omega - omega_n)/dt = T_m - (T_0 + Z omega)
+        with the set-point omega_sp = s_0 + s_1 omega (``setpoint`` = (s_0, s_1): a
+        controller's law may depend on the coming step's torque, hence on omega); updates the
+        integral."""
+        offset, gain_sp = setpoint
         gain = self.kp + self.ki * dt
-        omega = ((inertia / dt * omega_n + gain * setpoint + self.integral_torque_nm
-                  - string_torque_0) / (inertia / dt + gain + string_slope))
-        error = setpoint - omega
+        omega = ((inertia / dt * omega_n + gain * offset + self.integral_torque_nm
+                  - string_torque_0) / (inertia / dt + gain * (1.0 - gain_sp) + string_slope))
+        error = offset + gain_sp * omega - omega
         torque = self.kp * error + self.integral_torque_nm + self.ki * dt * error
         if abs(torque) <= self.limit:
             self.integral_torque_nm += self.ki * dt * error
@@ -198,14 +201,15 @@ class DynamicTopDrive:
         undo['loop'] = copy.copy(self.loop)
         undo['controller'] = copy.deepcopy(self.controller)
         self._undo = undo
-        setpoint = self.controller.setpoint(command_rad_per_s, self, dt)
         torque_0, slope = self.string.predicted()
-        omega, motor, saturated = self.loop.solve(self.inertia_kg_m2, self._speed, setpoint,
+        law = self.controller.law(command_rad_per_s, self, dt, torque_0, slope)
+        omega, motor, saturated = self.loop.solve(self.inertia_kg_m2, self._speed, law,
                                                   dt, torque_0, slope)
-        self.setpoint_rad_per_s = setpoint
+        self.setpoint_rad_per_s = law[0] + law[1] * omega
         self.motor_torque_nm = motor
         self.saturated = saturated
         self.predicted_string_torque_nm = torque_0 + slope * omega
+        self.controller.update(self.predicted_string_torque_nm, dt)
         self._speed = omega
         return omega
 
