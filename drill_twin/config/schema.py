@@ -457,10 +457,10 @@ class Drawworks:
     mode: DrawworksMode = 'hook_load'
     block_velocity_m_per_s: float = 0.0
     line_stiffness_n_per_m: float = 2.0e7
-    line_damping_n_s_per_m: float = 2.0e6
+    line_damping_n_s_per_m: float = 2.0e5
     weight_on_bit_setpoint_n: float = 100.0e3
-    autodriller_proportional_m_per_s_per_n: float = 2.0e-8
-    autodriller_integral_m_per_s2_per_n: float = 2.0e-9
+    autodriller_proportional_m_per_s_per_n: float = 1.0e-7
+    autodriller_integral_m_per_s2_per_n: float = 5.0e-9
 
     def __post_init__(self):
         if not math.isfinite(self.block_velocity_m_per_s):
