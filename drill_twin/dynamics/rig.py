@@ -44,9 +44,11 @@ class DriveTrain:
 
 
 def attach_drives(simulator) -> None:
-    """Attach the configured drives to ``simulator`` (module docstring)."""
+    """Attach the configured drives to ``simulator`` (module docstring); a second call
+    changes nothing."""
     attach_top_drive(simulator)
-    if simulator.config.drawworks.mode != 'hook_load':
+    if (simulator.config.drawworks.mode != 'hook_load'
+            and not isinstance(simulator.top_drive, DriveTrain)):
         simulator.top_drive = DriveTrain(simulator.top_drive,
                                          Drawworks(simulator, simulator.config.drawworks))
 

@@ -219,7 +219,8 @@ def attach_top_drive(simulator) -> None:
     asks for it (``top_drive.mode: dynamic``); nothing otherwise."""
     from drill_twin.dynamics.controllers import make_controller
     config = simulator.config.top_drive
-    if config.mode != 'dynamic':
-        return
+    current = getattr(simulator.top_drive, 'top_drive', simulator.top_drive)
+    if config.mode != 'dynamic' or isinstance(current, DynamicTopDrive):
+        return                                          # kinematic, or attached already
     simulator.top_drive = DynamicTopDrive(simulator, config,
                                           make_controller(simulator.config, simulator.system))
