@@ -211,3 +211,23 @@ def test_energy_balance_over_a_stick_slip_cycle():
     residual = budgets[second, 1] - budgets[first, 1]
     assert motor > 1e4
     assert abs(residual) < 0.01 * motor
+
+
+def test_the_simulator_attaches_the_configured_drive_and_a_failed_step_is_undone():
+    """Built from a config with ``top_drive.mode: dynamic`` the simulator drives its top with
+    the dynamic drive; the speed set back after a failed step restores the drive's state."""
+    simulator = Simulator(load_config(overrides=LINEAR + ['reduced_basis.torsional_modes=2']))
+    drive = simulator.top_drive
+    assert isinstance(drive, DynamicTopDrive)
+    attach_top_drive(simulator)
+    assert simulator.top_drive is drive                      # attaching twice changes nothing
+    start = drive.speed_rad_per_s
+    simulator.set_top_drive_speed(start + 0.1)                # below the torque limit
+    simulator.step()
+    assert not drive.saturated
+    integral, motor = drive.loop.integral_torque_nm, drive.motor_torque_nm
+    speed = drive.speed_rad_per_s
+    drive.advance(start + 0.1, simulator.dt)                 # a step that will be discarded
+    assert drive.loop.integral_torque_nm != integral
+    drive.speed_rad_per_s = speed                            # what the simulator does then
+    assert (drive.loop.integral_torque_nm, drive.motor_torque_nm) == (integral, motor)
