@@ -89,3 +89,30 @@ def test_reflection_of_a_torsional_pulse_at_the_top(tmp_path, controller, low, h
     assert np.max(speeds - speeds[0]) == pytest.approx(0.5, rel=0.05)    # the incident pulse
     r = reflection_coefficient(np.array(times), speeds, 2000.0 / wave_speed)
     assert low <= abs(r) <= high
+
+
+def test_top_drive_mode_and_controller_switch_at_run_time_without_a_jump():
+    from drill_twin.dynamics.rig import set_top_drive_mode, set_torque_limit, top_drive_of
+    from drill_twin.dynamics.simulator import TopDrive
+    from drill_twin.dynamics.top_drive import DynamicTopDrive
+    simulator = Simulator(load_config(overrides=[
+        'physics.contact=false', 'physics.kinetic_coupling=false',
+        'physics.finite_strain=false', 'reduced_basis.lateral_modes=0',
+        'initial_conditions.lateral_deflection_m=0', 'initial_conditions.steady_twist=true']))
+    for _ in range(20):
+        simulator.step()
+    speed = simulator.top_drive.speed_rad_per_s
+    set_top_drive_mode(simulator, 'dynamic', 'impedance')
+    drive = top_drive_of(simulator)
+    assert isinstance(drive, DynamicTopDrive) and isinstance(drive.controller, Impedance)
+    assert drive.motor_torque_nm == pytest.approx(simulator.observe().top_torque_nm[0])
+    simulator.step()
+    assert drive.speed_rad_per_s == pytest.approx(speed, abs=1e-3)
+    set_torque_limit(simulator, 5e3)
+    assert drive.loop.limit == 5e3
+    with pytest.raises(ValueError):
+        set_torque_limit(simulator, -1.0)
+    set_top_drive_mode(simulator, 'kinematic')
+    assert type(top_drive_of(simulator)) is TopDrive
+    simulator.step()
+    assert simulator.top_drive.speed_rad_per_s == pytest.approx(speed, abs=2e-2)

@@ -11,6 +11,7 @@ step. With the defaults (kinematic drive, hook-load input) nothing changes.
 from __future__ import annotations
 
 import copy
+import dataclasses
 
 from drill_twin.dynamics.drawworks import Drawworks
 from drill_twin.dynamics.top_drive import attach_top_drive
@@ -78,3 +79,44 @@ def set_axial_mode(simulator, mode: str) -> None:
         drawworks = Drawworks(simulator, simulator.config.drawworks)
         simulator.top_drive = DriveTrain(simulator.top_drive, drawworks)
     drawworks.set_mode(mode)
+
+
+def _replace_top_drive(simulator, new_drive) -> None:
+    train = simulator.top_drive
+    if isinstance(train, DriveTrain):
+        train.top_drive = new_drive
+    else:
+        simulator.top_drive = new_drive
+
+
+def set_top_drive_mode(simulator, mode: str, controller: str | None = None) -> None:
+    """Switch the top drive at run time, bumpless: 'kinematic' (the speed now held, then
+    following commands at ``operation.top_drive_acceleration_rad_per_s2``) or 'dynamic' (the
+    PI integral starts at the string's current torque), with ``controller`` (stiff,
+    soft_torque, impedance; None: the configured one)."""
+    from drill_twin.dynamics.controllers import make_controller
+    from drill_twin.dynamics.simulator import TopDrive
+    from drill_twin.dynamics.top_drive import DynamicTopDrive
+
+    if mode not in ('kinematic', 'dynamic'):
+        raise ValueError(f'top drive mode must be kinematic or dynamic, not {mode!r}')
+    speed = top_drive_of(simulator).speed_rad_per_s
+    settings = simulator.config.top_drive
+    settings = dataclasses.replace(settings, mode=mode,
+                                   controller=controller or settings.controller)
+    config = dataclasses.replace(simulator.config, top_drive=settings)
+    if mode == 'kinematic':
+        drive = TopDrive(speed, config.operation.top_drive_acceleration_rad_per_s2)
+    else:
+        drive = DynamicTopDrive(simulator, settings, make_controller(config, simulator.system))
+    _replace_top_drive(simulator, drive)
+
+
+def set_torque_limit(simulator, newton_metre: float) -> None:
+    """The dynamic drive's motor torque limit (N m, > 0), from the next step on."""
+    drive = top_drive_of(simulator)
+    if not hasattr(drive, 'loop'):
+        raise ValueError('the torque limit applies to the dynamic top drive only')
+    if not newton_metre > 0:
+        raise ValueError(f'the torque limit must be > 0 N m, got {newton_metre!r}')
+    drive.loop.limit = float(newton_metre)
