@@ -116,3 +116,43 @@ def test_top_drive_mode_and_controller_switch_at_run_time_without_a_jump():
     assert type(top_drive_of(simulator)) is TopDrive
     simulator.step()
     assert simulator.top_drive.speed_rad_per_s == pytest.approx(speed, abs=2e-2)
+
+
+def _system(config):
+    from drill_twin.dynamics.reduced_system import build_reduced_system
+    from drill_twin.modal.reduced_basis import modal_analysis
+    model, _, basis = modal_analysis(config)
+    return build_reduced_system(model, basis)
+
+
+def test_linear_stability_with_one_mode_is_the_closed_form():
+    """One mass-normalised torsional mode at the imposed speed: s^2 + (c_1 + phi_b^2 D) s +
+    w_1^2 = 0, growth rate -(c_1 + phi_b^2 D) / 2 when it oscillates."""
+    from drill_twin.dynamics.drive_stability import growth_rate_per_s
+    config = load_config(overrides=['reduced_basis.lateral_modes=0',
+                                    'reduced_basis.torsional_modes=1'])
+    system = _system(config)
+    columns = system.blocks['torsional'].columns
+    c1 = float(system.damping[columns, columns][0, 0])
+    phi = float(system.blocks['torsional'].shapes[system.bit_node][0])
+    for slope in (-300.0, -100.0, 200.0):
+        expected = -(c1 + phi ** 2 * slope) / 2
+        assert growth_rate_per_s(config, system, 'kinematic', slope) == pytest.approx(
+            expected, rel=1e-9)
+
+
+def test_a_stiff_drive_is_the_kinematic_one_and_the_torque_feedback_stabilises_100_kn():
+    """At the paper's point (velocity weakening D = -179 N m s/rad) the kinematic and stiff
+    drives grow (stick-slip) at the same rate; soft_torque and impedance make it decay."""
+    from drill_twin.dynamics.drive_stability import (bit_torque_slope_nm_s_per_rad,
+                                                     growth_rate_per_s)
+    config = load_config(overrides=['reduced_basis.lateral_modes=0'])
+    system = _system(config)
+    slope = bit_torque_slope_nm_s_per_rad(config, config.operation.top_drive_speed_rad_per_s,
+                                          100e3)
+    assert slope < 0
+    rates = {d: growth_rate_per_s(config, system, d, slope)
+             for d in ('kinematic', 'stiff', 'soft_torque', 'impedance')}
+    assert rates['kinematic'] > 0.1
+    assert rates['stiff'] == pytest.approx(rates['kinematic'], rel=0.02)
+    assert rates['soft_torque'] < 0 and rates['impedance'] < 0
