@@ -34,7 +34,7 @@ COLUMNS = ('drive', 'weight_on_bit_kn', 'speed_hz', 'stick_slip_severity',
 
 
 def run_point(drive: str, wob_kn: float, speed_hz: float, duration_s: float,
-              window_s: float) -> dict:
+              window_s: float, extra: tuple[str, ...] = (), label: str | None = None) -> dict:
     from drill_twin.config import load_config
     from drill_twin.dynamics import kpi
     from drill_twin.dynamics.simulator import Simulator, SimulationDiverged
@@ -44,7 +44,9 @@ def run_point(drive: str, wob_kn: float, speed_hz: float, duration_s: float,
                                    f'operation.top_drive_speed_hz={speed_hz}']
     if drive != 'kinematic':
         overrides += ['top_drive.mode=dynamic', f'top_drive.controller={drive}']
-    row = {'drive': drive, 'weight_on_bit_kn': wob_kn, 'speed_hz': speed_hz, 'failed': 0}
+    overrides += list(extra)
+    row = {'drive': label or drive, 'weight_on_bit_kn': wob_kn, 'speed_hz': speed_hz,
+           'failed': 0}
     start = time.perf_counter()
     simulator = Simulator(load_config(overrides=overrides))
     attach_top_drive(simulator)
@@ -84,12 +86,12 @@ def figure(rows: list[dict], path: Path) -> None:
 
     fig, (by_wob, by_speed) = plt.subplots(1, 2, figsize=(10, 4))
     paper_speed = 0.83
-    for drive in DRIVES:
+    for drive in dict.fromkeys(r['drive'] for r in rows):
         mine = [r for r in rows if r['drive'] == drive and 'stick_slip_severity' in r]
-        wob = sorted((r['weight_on_bit_kn'], r['stick_slip_severity']) for r in mine
-                     if r['speed_hz'] == paper_speed)
-        speed = sorted((r['speed_hz'], r['stick_slip_severity']) for r in mine
-                       if r['weight_on_bit_kn'] == 150.0)
+        wob = sorted((float(r['weight_on_bit_kn']), float(r['stick_slip_severity']))
+                     for r in mine if float(r['speed_hz']) == paper_speed)
+        speed = sorted((float(r['speed_hz']), float(r['stick_slip_severity'])) for r in mine
+                       if float(r['weight_on_bit_kn']) == 150.0)
         if wob:
             by_wob.plot(*zip(*wob), 'o-', label=drive)
         if speed:
@@ -116,6 +118,11 @@ def main() -> None:
                         default=[50.0, 75.0, 100.0, 125.0, 150.0, 175.0])
     parser.add_argument('--speed-hz', type=float, nargs='+', default=[0.5, 1.2])
     parser.add_argument('--drives', nargs='+', default=list(DRIVES), choices=DRIVES)
+    parser.add_argument('--set', action='append', default=[], metavar='KEY=VALUE',
+                        help='extra config override for these runs (repeatable)')
+    parser.add_argument('--label', help='name of the series in the table (default: the drive)')
+    parser.add_argument('--append', action='store_true',
+                        help='add to the rows already in OUT_DIR/drive_controllers.csv')
     args = parser.parse_args()
     from threadpoolctl import threadpool_limits
 
@@ -123,12 +130,16 @@ def main() -> None:
     out.mkdir(parents=True, exist_ok=True)
     points = [(w, 0.83) for w in args.wob_kn] + [(150.0, s) for s in args.speed_hz
                                                   if s != 0.83]
-    rows = []
     table = out / 'drive_controllers.csv'
+    rows = []
+    if args.append and table.exists():
+        with open(table, newline='') as handle:
+            rows = [{k: v for k, v in row.items() if v != ''} for row in csv.DictReader(handle)]
     with threadpool_limits(limits=1, user_api='blas'):
         for drive in args.drives:
             for wob, speed in points:
-                row = run_point(drive, wob, speed, args.duration, args.window)
+                row = run_point(drive, wob, speed, args.duration, args.window,
+                                tuple(args.set), args.label)
                 rows.append(row)
                 print({k: (round(v, 4) if isinstance(v, float) else v) for k, v in row.items()},
                       flush=True)
