@@ -412,8 +412,9 @@ class TopDrive:
     under a PI speed controller whose motor torque is limited to ``torque_limit_nm``, driving
     the string's top, with the speed set-point shaped by ``controller``.
 
-    The impedance of ``impedance`` and the gain of ``soft_torque`` are derived from the top
-    pipe (zeta = I_p sqrt(rho k_s G), N m s/rad) unless given here.
+    ``impedance_nm_s_per_rad`` (N m s/rad) is derived from the string unless given: for
+    ``impedance`` the top pipe's characteristic impedance zeta = I_p sqrt(rho k_s G), for
+    ``soft_torque`` k_t / omega_1 (torsional stiffness over first torsional frequency).
     """
 
     mode: TopDriveMode = 'kinematic'
@@ -423,7 +424,7 @@ class TopDrive:
     torque_limit_nm: float = 80.0e3
     controller: DriveController = 'stiff'
     impedance_nm_s_per_rad: float | None = None
-    """None: the characteristic impedance of the top section."""
+    """None: derived from the string (see the class docstring)."""
     soft_torque_corner_fraction: float = 0.5
     """soft_torque: high-pass corner of the torque feedback as a fraction of the first
     torsional frequency of the string (fixed top)."""
