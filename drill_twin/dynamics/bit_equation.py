@@ -38,7 +38,7 @@ and the outer equation would have no root at the jump.)
 Nothing here can fail for finite inputs: continuous functions on brackets with a sign
 change, and at most a fixed number of halvings.
 
-The solve is compiled (:func:`solve_member`, one member, called by the Newmark step kernel);
+The solve is compiled (:func:`solve_one`, one member, called by the Newmark step kernel);
 :func:`solve_bit_equation` runs it over a batch.
 """
 from __future__ import annotations
@@ -94,12 +94,12 @@ def solve_bit_equation(law: BitRockLaw, b, c, rho, germ=None, omega_guess=None):
 
 @kernel
 def solve_batch(b, c, rho, germ, random, guess, k, out):
-    """solve_member for every row of b, c (m, 2), rho, guess (m,); out (7, m): rop, omega,
+    """solve_one for every row of b, c (m, 2), rho, guess (m,); out (7, m): rop, omega,
     force, torque, lifted, on bottom, cutting rate (flags as 0/1)."""
     last = germ.shape[0] - 1
     for i in range(b.shape[0]):
         g = min(i, last)
-        rop, omega, f1, f2, parameter, cut = solve_member(
+        rop, omega, f1, f2, parameter, cut = solve_one(
             b[i, 0], b[i, 1], c[i, 0], c[i, 1], rho[i], germ[g, 0, 0], germ[g, 0, 1],
             germ[g, 1, 1], random, guess[i], k)
         out[0, i], out[1, i], out[2, i], out[3, i] = rop, omega, f1, f2
@@ -108,8 +108,8 @@ def solve_batch(b, c, rho, germ, random, guess, k, out):
         out[6, i] = cut
 
 
-@inline
-def solve_member(b1, b2, c1, c2, rho, g11, g12, g22, random, guess, k):
+@kernel
+def solve_one(b1, b2, c1, c2, rho, g11, g12, g22, random, guess, k):
     """One member's solve (module docstring): (rop, omega, F1, F2, P, cutting rate)."""
     germ = (g11, g12, g22, random)
     if not b1 > maximum(rho, cutting_rate(0.0, b2, k)):
