@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from drill_twin.dynamics.bit_rock import BitRockLaw
+from drill_twin.dynamics.compiled import kernel
 from drill_twin.dynamics.contact import ContactForces, accumulate_contact
 from drill_twin.dynamics.finite_strain import StrainOperators, accumulate_finite_strain
 from drill_twin.dynamics.kinetic_coupling import CouplingOperators, accumulate_kinetic_coupling
@@ -133,6 +134,31 @@ class Workspace:
         :meth:`NonlinearForces.accumulate`."""
 
 
+@kernel
+def string_forces(switches, strain_arguments, coupling_arguments, contact_arguments,
+                  displacement_t, theta_x_rate_t, theta_x_acceleration_t, bending_y_rate_t,
+                  bending_y_acceleration_t, bending_z_rate_t, strain, linear, stress, coupling,
+                  force_t, radial, in_contact, tangent):
+    """force_t += f_se + f_ke + f_ip (not the bit's), members last: the one place the forces
+    of the string are summed (:meth:`NonlinearForces.accumulate` and the Newmark step
+    kernel call it). switches: (finite strain, kinetic coupling, contact); the arguments of
+    each kernel are those of NonlinearForces. Returns the number of (member, node) pairs
+    touching the wall (radial, in_contact are zero and False without contact)."""
+    if switches[0]:
+        accumulate_finite_strain(displacement_t, *strain_arguments, strain, linear, stress,
+                                 force_t)
+    if switches[1]:
+        accumulate_kinetic_coupling(displacement_t, theta_x_rate_t, theta_x_acceleration_t,
+                                    bending_y_rate_t, bending_y_acceleration_t,
+                                    bending_z_rate_t, *coupling_arguments, coupling, force_t)
+    if not switches[2]:
+        radial[:, :] = 0.0
+        in_contact[:, :] = False
+        return 0
+    return accumulate_contact(displacement_t, theta_x_rate_t, *contact_arguments, force_t,
+                              radial, in_contact, tangent)
+
+
 class NonlinearForces:
     """f_ke + f_se + f_ip + f_br of Eq. 31 (g(t) is handled by the integrator)."""
 
@@ -151,6 +177,17 @@ class NonlinearForces:
         self.outer_radius_m = np.ascontiguousarray(system.node_outer_radius_m, dtype=float)
         self._workspace = None
         self._step_workspace = None
+        physics, borehole = self.physics, self.borehole
+        self.switches = (bool(physics.finite_strain), bool(physics.kinetic_coupling),
+                         bool(physics.contact))
+        """Which forces of the string are on: finite strain, kinetic coupling, contact."""
+        self.strain_arguments = self.strain_operators.arguments()
+        self.coupling_arguments = self.coupling_operators.arguments()
+        self.contact_arguments = (system.n_nodes, self.clearance_m, self.outer_radius_m,
+                                  float(borehole.contact_stiffness_n_per_m),
+                                  float(borehole.friction_coefficient),
+                                  float(borehole.friction_regularization_rad_per_s))
+        """The kernels' operands: string_forces takes them as they are."""
 
     def workspace(self, members: int) -> Workspace:
         """The work arrays for a batch of ``members`` (made again only when m changes)."""
@@ -176,26 +213,11 @@ class NonlinearForces:
         (member, node) pairs touching the wall. This is the one place the non-linear forces of
         the string are summed: :meth:`evaluate` and the Newmark step both call it.
         """
-        physics = self.physics
-        if physics.finite_strain:
-            accumulate_finite_strain(displacement_t, *self.strain_operators.arguments(),
-                                     work.strain, work.linear, work.stress, force_t)
-        if physics.kinetic_coupling:
-            accumulate_kinetic_coupling(
-                displacement_t, theta_x_rate_t, theta_x_acceleration_t, bending_y_rate_t,
-                bending_y_acceleration_t, bending_z_rate_t,
-                *self.coupling_operators.arguments(), work.coupling, force_t)
-        if not physics.contact:
-            radial[...] = 0.0
-            in_contact[...] = False
-            return 0
-        borehole = self.borehole
-        return accumulate_contact(
-            displacement_t, theta_x_rate_t, self.system.n_nodes, self.clearance_m,
-            self.outer_radius_m, float(borehole.contact_stiffness_n_per_m),
-            float(borehole.friction_coefficient),
-            float(borehole.friction_regularization_rad_per_s), force_t, radial, in_contact,
-            work.tangent)
+        return string_forces(self.switches, self.strain_arguments, self.coupling_arguments,
+                             self.contact_arguments, displacement_t, theta_x_rate_t,
+                             theta_x_acceleration_t, bending_y_rate_t, bending_y_acceleration_t,
+                             bending_z_rate_t, work.strain, work.linear, work.stress,
+                             work.coupling, force_t, radial, in_contact, work.tangent)
 
     def evaluate(self, fields: Kinematics, germ=None) -> ForceEvaluation:
         """f_NL for the fields of a batch; ``germ`` (m, 2, 2) randomises the bit-rock law.

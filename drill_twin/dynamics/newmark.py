@@ -210,15 +210,19 @@ class NewmarkIntegrator:
         diagonal = (self._stiffness_diagonal if self._stiffness_diagonal is not None
                     else np.empty(0))
         self._operators = (
-            system.bit_node, system.n_nodes,
-            *(np.ascontiguousarray(block.shapes_t) for block in blocks), self._ranges,
+            self._shapes, tuple(np.ascontiguousarray(block.shapes_t) for block in blocks),
+            self._ranges, system.bit_node, system.n_nodes,
             np.ascontiguousarray(self.mass), self._mass_is_identity,
             np.ascontiguousarray(self.damping), np.ascontiguousarray(self.stiffness),
             np.ascontiguousarray(diagonal), np.ascontiguousarray(la.inv(effective)),
             np.ascontiguousarray(local), np.ascontiguousarray(self.local_response),
             np.ascontiguousarray(self.local_gram), self.bit_rows, self.bit_response,
-            np.ascontiguousarray(self.bit_flexibility))
-        self._dt2 = BETA * self.time_step_s ** 2
+            np.ascontiguousarray(self.bit_flexibility), self.bit_axial_row,
+            forces.bit_axial_index, forces.bit_torsion_index, self.time_step_s,
+            BETA * self.time_step_s ** 2, self.tolerance)
+        without_bit = self._forces_without_bit
+        self._forces_arguments = (without_bit.switches, without_bit.strain_arguments,
+                                  without_bit.coupling_arguments, without_bit.contact_arguments)
         self._bit_constants = self._law_constants(germ)
         self._work = None
         self._rate = None                 # per member: contraction rate of its last 2-iteration step
@@ -283,6 +287,7 @@ class NewmarkIntegrator:
         return (float(self.static_bit_force[0]), bool(self.forces.physics.bit_rock),
                 law.constants, float(law.fade_speed_rad_per_s), germs, germ is not None)
 
+
     def with_time_step(self, time_step_s: float) -> 'NewmarkIntegrator':
         """The same integrator (forces, tolerance, germs) with another time step."""
         return NewmarkIntegrator(self.forces, time_step_s, self.tolerance, self.max_iterations,
@@ -318,13 +323,7 @@ class NewmarkIntegrator:
         load = self._external_load(top_speed_rad_per_s, top_acceleration, hook_load_n)
         members = state.q.shape[0]
         work = self._step_work(members)
-        forces = work.forces
         has_hole = state.hole_u is not None
-        compiled.begin(np.ascontiguousarray(state.q), np.ascontiguousarray(state.q_rate),
-                       np.ascontiguousarray(state.q_acceleration),
-                       state.hole_u if has_hole else work.touch, has_hole, dt,
-                       self.bit_axial_row, work.d_pred, work.v_pred, work.a, work.touch,
-                       work.hole, work.error, work.active, work.bit_ok)
         bookkeeping = self._bookkeeping()              # restored if the step fails
         have_rate = self._rate is not None and self._rate.shape == (members,)
         if not have_rate:
@@ -333,39 +332,22 @@ class NewmarkIntegrator:
         have_active = self._active is not None and self._active[1].shape == (members,)
         previous_contact, previous_lifted = (self._active if have_active
                                              else (work.no_contact, work.no_lift))
-        nodes = self.system.n_nodes
-        final = _FinalEvaluation(self.system.n_dofs, self.system.size, nodes, members)
-        cd, cv = BETA * dt * dt, GAMMA * dt
-        iterations = robust = 0
-        for iterations in range(1, self.max_iterations + 1):
-            compiled.fields(work.a, work.d_pred, work.v_pred, cd, cv, top_speed_rad_per_s,
-                            top_acceleration, *self._shapes, self._ranges, work.d, work.v,
-                            *forces.kinematics)
-            forces.force_t[...] = 0.0
-            touching = self._forces_without_bit.accumulate(
-                *forces.kinematics, forces, forces.force_t, forces.radial, forces.in_contact)
-            still, used = compiled.update(
-                iterations, forces.force_t, forces.radial, forces.in_contact, forces.tangent,
-                touching, forces.kinematics[1], *self._operators, dt, self._dt2,
-                self.tolerance, load, *self._bit_constants, have_rate, have_active,
-                self._rate, self._steps_since_verified, previous_contact, previous_lifted,
-                work.d, work.v, work.a, work.modal, work.residual, work.y, work.product,
-                work.response, work.touch, work.error, work.previous_error, work.active,
-                work.bit_ok, *final.arrays)
-            robust += used
-            if not still:
-                break
-        q = np.empty((members, self.system.size))
+        system = self.system
+        final = _FinalEvaluation(system.n_dofs, system.size, system.n_nodes, members)
+        q = np.empty((members, system.size))
         q_rate, q_acceleration = np.empty_like(q), np.empty_like(q)
         hole = np.empty(members)
         finite = np.empty(members, dtype=bool)
         converged = np.empty(members, dtype=bool)
-        count = compiled.finish(
-            work.d_pred, work.v_pred, work.a, cd, cv, self.bit_axial_row, work.hole,
-            final.bit_force, final.bit_torque, self.static_bit_force[0], self.bit_rows,
-            self.forces.bit_axial_index, self.forces.bit_torsion_index, final.full,
-            final.modal, work.error, work.bit_ok, self.tolerance, q, q_rate, q_acceleration,
-            hole, finite, converged)
+        iterations, robust, count = compiled.step(
+            (np.ascontiguousarray(state.q), np.ascontiguousarray(state.q_rate),
+             np.ascontiguousarray(state.q_acceleration),
+             state.hole_u if has_hole else work.touch, has_hole),
+            (float(top_speed_rad_per_s), float(top_acceleration), load, self.max_iterations),
+            (have_rate, have_active, self._rate, self._steps_since_verified, previous_contact,
+             previous_lifted),
+            self._forces_arguments, self._operators + self._bit_constants, work.arrays,
+            final.arrays, (q, q_rate, q_acceleration, hole, finite, converged))
         evaluation = final.evaluation()
         self._steps_since_verified += 1
         self._active = (final.contact.copy(), final.bit_lifted.copy())
@@ -374,7 +356,9 @@ class NewmarkIntegrator:
         success = count == members
         time = state.time_s + dt
         message = ''
-        if not np.all(finite):
+        if success:
+            pass
+        elif not np.all(finite):
             message = f'non-finite state at t = {time:.6g} s (members {np.flatnonzero(~finite)})'
         elif not np.all(bit_ok):
             message = (f'the bit-rock equation has no solution at t = {time:.6g} s '
@@ -402,7 +386,13 @@ class NewmarkIntegrator:
         work = self._work
         if work is None or work.members != members:
             work = compiled.StepWork(self.system.size, members)
-            work.forces = self._forces_without_bit.step_workspace(members)
+            forces = self._forces_without_bit.step_workspace(members)
+            work.arrays = (work.d_pred, work.v_pred, work.a, work.d, work.v, work.residual,
+                           work.y, work.modal, work.product, work.response, work.touch,
+                           work.hole, work.error, work.previous_error, work.active,
+                           work.bit_ok, *forces.kinematics, forces.strain, forces.linear,
+                           forces.stress, forces.coupling, forces.force_t, forces.radial,
+                           forces.in_contact, forces.tangent)
             work.no_contact = np.zeros((members, self.system.n_nodes), dtype=bool)
             work.no_lift = np.zeros(members, dtype=bool)
             self._work = work

@@ -19,6 +19,7 @@ import numpy as np
 from drill_twin.dynamics.bit_equation import solve_one
 from drill_twin.dynamics.bit_rock import cutting_rate, law_point, maximum, minimum
 from drill_twin.dynamics.compiled import inline, kernel
+from drill_twin.dynamics.forces import string_forces
 
 BETA = 0.25
 GAMMA = 0.5
@@ -374,3 +375,75 @@ def finish(d_pred, v_pred, a, cd, cv, bit_axial_row, hole, bit_force, bit_torque
         converged[i] = ok and bit_ok[i] and error[i] <= tolerance
         count += converged[i]
     return count
+
+
+@kernel
+def step(state, step_inputs, bookkeeping, forces, operators, work, final, out):
+    """One Newmark step of m members: begin, then (fields, forces of the string, update)
+    until every member is done or max_iterations, then finish. Arguments are tuples:
+
+    state: (q, q_rate, q_acceleration (m, n) members first, hole (m,), has_hole);
+    step_inputs: (top_speed, top_acceleration, load (n,), max_iterations);
+    bookkeeping: (have_rate, have_active, rate, since, previous_contact, previous_lifted);
+    forces: the arguments of forces.string_forces before the kinematics;
+    operators: (shapes (4,), shapes_t (4,), ranges, bit_node, n_nodes, mass, mass is I,
+    damping, stiffness, stiffness diagonal, S0^-1, local directions, S0^-1 U, U^T S0^-1 U,
+    B^T, S0^-1 B, B^T S0^-1 B, bit axial row, bit axial and torsion DOF, dt, beta dt^2
+    (the contact's), tolerance, static force on bit, bit_rock, law constants, fade speed,
+    germs, random);
+    work: StepWork arrays and the forces' Workspace arrays; final: _FinalEvaluation.arrays;
+    out: (q, q_rate, q_acceleration, hole, finite, converged) of the new state.
+
+    Returns (iterations, iterations in which a member needed the bracketed bit solve,
+    members converged).
+    """
+    q, q_rate, q_acceleration, hole_in, has_hole = state
+    top_speed, top_acceleration, load, max_iterations = step_inputs
+    have_rate, have_active, rate, since, previous_contact, previous_lifted = bookkeeping
+    switches, strain_arguments, coupling_arguments, contact_arguments = forces
+    (shapes, shapes_t, ranges, bit_node, n_nodes, mass, mass_is_identity, damping, stiffness,
+     stiffness_diagonal, effective_inverse, local_directions, local_response, local_gram,
+     bit_rows, bit_response, bit_flexibility, bit_axial_row, axial_index, torsion_index, dt,
+     dt2, tolerance, static_force, bit_rock, law, fade_speed, germ, random) = operators
+    (d_pred, v_pred, a, d, v, residual, y, modal, product, response, touch, hole, error,
+     previous_error, active, bit_ok, displacement_t, theta_x_rate_t, theta_x_acceleration_t,
+     bending_y_rate_t, bending_y_acceleration_t, bending_z_rate_t, strain, linear, stress,
+     coupling, force_t, radial, in_contact, tangent) = work
+    (final_full, final_modal, final_radial, final_contact, final_tangent, bit_rop, bit_omega,
+     bit_force, bit_torque, bit_lifted, bit_jacobian, bit_solved) = final
+    q_out, q_rate_out, q_acceleration_out, hole_out, finite, converged = out
+    begin(q, q_rate, q_acceleration, hole_in, has_hole, dt, bit_axial_row, d_pred, v_pred, a,
+          touch, hole, error, active, bit_ok)
+    cd, cv = BETA * dt * dt, GAMMA * dt
+    iterations, robust = 0, 0
+    for iteration in range(1, max_iterations + 1):
+        iterations = iteration
+        fields(a, d_pred, v_pred, cd, cv, top_speed, top_acceleration, shapes[0], shapes[1],
+               shapes[2], shapes[3], ranges, d, v, displacement_t, theta_x_rate_t,
+               theta_x_acceleration_t, bending_y_rate_t, bending_y_acceleration_t,
+               bending_z_rate_t)
+        force_t[:, :] = 0.0
+        touching = string_forces(switches, strain_arguments, coupling_arguments,
+                                 contact_arguments, displacement_t, theta_x_rate_t,
+                                 theta_x_acceleration_t, bending_y_rate_t,
+                                 bending_y_acceleration_t, bending_z_rate_t, strain, linear,
+                                 stress, coupling, force_t, radial, in_contact, tangent)
+        still, used = update(
+            iteration, force_t, radial, in_contact, tangent, touching, theta_x_rate_t,
+            bit_node, n_nodes, shapes_t[0], shapes_t[1], shapes_t[2], shapes_t[3], ranges,
+            mass, mass_is_identity, damping, stiffness, stiffness_diagonal, effective_inverse,
+            local_directions, local_response, local_gram, bit_rows, bit_response,
+            bit_flexibility, dt, dt2, tolerance, load, static_force, bit_rock, law,
+            fade_speed, germ, random, have_rate, have_active, rate, since, previous_contact,
+            previous_lifted, d, v, a, modal, residual, y, product, response, touch, error,
+            previous_error, active, bit_ok, final_full, final_modal, final_radial,
+            final_contact, final_tangent, bit_rop, bit_omega, bit_force, bit_torque,
+            bit_lifted, bit_jacobian, bit_solved)
+        robust += used
+        if still == 0:
+            break
+    count = finish(d_pred, v_pred, a, cd, cv, bit_axial_row, hole, bit_force, bit_torque,
+                   static_force, bit_rows, axial_index, torsion_index, final_full,
+                   final_modal, error, bit_ok, tolerance, q_out, q_rate_out,
+                   q_acceleration_out, hole_out, finite, converged)
+    return iterations, robust, count
