@@ -209,12 +209,14 @@ class NewmarkIntegrator:
                                   block.columns.stop] for block in blocks], dtype=np.int64)
         diagonal = (self._stiffness_diagonal if self._stiffness_diagonal is not None
                     else np.empty(0))
+        damping_blocks, groups, inverse_blocks = _diagonal_blocks(
+            self.damping, la.inv(effective), self._ranges[:, 2:])
         self._operators = (
             self._shapes, tuple(np.ascontiguousarray(block.shapes_t) for block in blocks),
             self._ranges, system.bit_node, system.n_nodes,
             np.ascontiguousarray(self.mass), self._mass_is_identity,
-            np.ascontiguousarray(self.damping), np.ascontiguousarray(self.stiffness),
-            np.ascontiguousarray(diagonal), np.ascontiguousarray(la.inv(effective)),
+            damping_blocks, np.ascontiguousarray(self.stiffness),
+            np.ascontiguousarray(diagonal), inverse_blocks, groups,
             np.ascontiguousarray(local), np.ascontiguousarray(self.local_response),
             np.ascontiguousarray(self.local_gram), self.bit_rows, self.bit_response,
             np.ascontiguousarray(self.bit_flexibility), self.bit_axial_row,
@@ -388,9 +390,10 @@ class NewmarkIntegrator:
             work = compiled.StepWork(self.system.size, members)
             forces = self._forces_without_bit.step_workspace(members)
             work.arrays = (work.d_pred, work.v_pred, work.a, work.d, work.v, work.residual,
-                           work.y, work.modal, work.product, work.response, work.touch,
+                           work.y, work.modal, work.product, work.responses, work.touch,
                            work.hole, work.error, work.previous_error, work.active,
-                           work.bit_ok, *forces.kinematics, forces.strain, forces.linear,
+                           work.bit_ok, work.scratch, work.flexibilities, work.on_wall,
+                           *forces.kinematics, forces.strain, forces.linear,
                            forces.stress, forces.coupling, forces.force_t, forces.radial,
                            forces.in_contact, forces.tangent)
             work.no_contact = np.zeros((members, self.system.n_nodes), dtype=bool)
@@ -459,6 +462,28 @@ class NewmarkIntegrator:
                        torque_on_bit_nm=bit.torque, rop_m_per_s=bit.rop,
                        bit_speed_rad_per_s=bit.omega, lifted=bit.lifted,
                        bit_jacobian=bit.jacobian)
+
+
+def _diagonal_blocks(damping, inverse, groups):
+    """([C_r] blocks (4,), row groups (4, 2), S0^-1 blocks (4,)) as the step kernel takes
+    them: the diagonal blocks on the coordinate groups of Phi's blocks when
+    [C_r] and S0^-1 have nothing outside them (the fields do not couple linearly), else the
+    whole matrices as one group."""
+    outside = np.ones(damping.shape, dtype=bool)
+    for start, stop in groups:
+        outside[start:stop, start:stop] = False
+    if np.any(damping[outside] != 0) or np.any(inverse[outside] != 0):
+        n = damping.shape[0]
+        groups = np.array([[0, n]] + [[n, n]] * 3, dtype=np.int64)
+    else:
+        groups = np.ascontiguousarray(groups, dtype=np.int64)
+    empty = np.empty((0, 0))
+
+    def blocks(matrix):
+        return tuple(np.ascontiguousarray(matrix[start:stop, start:stop]) if stop > start
+                     else empty for start, stop in groups)
+
+    return blocks(damping), groups, blocks(inverse)
 
 
 class _FinalEvaluation:

@@ -36,7 +36,9 @@ class StepWork:
     d_pred, v_pred, a, d, v, residual, y: (n, m); modal: (n, m) (Phi^T f of the iterate);
     touch, hole: (m,); per-member state of the iteration: error, previous_error (m,),
     active, bit_ok (m,) bools; the bit of the iteration (rop, omega, force, torque, lifted,
-    jacobian (m, 2, 2), solved) and the product buffer (n, m).
+    jacobian (m, 2, 2), solved) and the product buffer (n, m); responses (m, n, 2): S^-1 B of
+    the members on the wall (on_wall (m,)), flexibilities (m, 2, 2): B^T S^-1 B; scratch
+    (6, m).
     """
 
     def __init__(self, n: int, members: int):
@@ -50,7 +52,10 @@ class StepWork:
         self.error, self.previous_error = np.empty(members), np.empty(members)
         self.active = np.empty(members, dtype=np.bool_)
         self.bit_ok = np.empty(members, dtype=np.bool_)
-        self.response = np.empty((n, 2))
+        self.responses = np.empty((members, n, 2))
+        self.scratch = np.empty((6, members))
+        self.flexibilities = np.empty((members, 2, 2))
+        self.on_wall = np.empty(members, dtype=np.bool_)
 
 
 @kernel
@@ -113,20 +118,23 @@ def fields(a, d_pred, v_pred, cd, cv, top_speed, top_acceleration, shapes_axial,
 def update(iteration, force_t, radial, in_contact, tangent, touching, theta_x_rate_t,
            bit_node, n_nodes, shapes_t_axial, shapes_t_torsion, shapes_t_y, shapes_t_z, ranges,
            mass, mass_is_identity, damping, stiffness, stiffness_diagonal, effective_inverse,
-           local_directions, local_response, local_gram, bit_rows, bit_response,
+           groups, local_directions, local_response, local_gram, bit_rows, bit_response,
            bit_flexibility, dt, dt2, tolerance, load, static_force, bit_rock, law, fade_speed,
            germ, random, have_rate, have_active, rate, since, previous_contact,
-           previous_lifted, work_d, work_v, a, modal, residual, y, product, response, touch,
-           error, previous_error, active, bit_ok, final_full, final_modal, final_radial,
-           final_contact, final_tangent, bit_rop, bit_omega, bit_force, bit_torque,
-           bit_lifted, bit_jacobian, bit_solved):
+           previous_lifted, work_d, work_v, a, modal, residual, y, product, responses, touch,
+           error, previous_error, active, bit_ok, scratch, flexibilities, on_wall, final_full,
+           final_modal, final_radial, final_contact, final_tangent, bit_rop, bit_omega,
+           bit_force, bit_torque, bit_lifted, bit_jacobian, bit_solved):
     """One iteration after the forces of the iterate (force_t, members last, without the
     bit): the Newmark update of the module docstring of :mod:`newmark`, per member.
 
     Updates a, error, active, bit_ok, the bit of the active members and the bookkeeping
     (rate, since) in place, and keeps the evaluation of the frozen members (at their final
-    state) in final_*. Returns (members still active, 1 if any member needed the bracketed
-    bit solve).
+    state) in final_*. Loops over the n coordinates run with the members innermost (the
+    arrays' layout); the per-member work (the bit, the decisions) runs member by member.
+    scratch (6, m), flexibilities (m, 2, 2), responses (m, n, 2) (S^-1 B of members on the
+    wall), on_wall (m,): work arrays. Returns (members still active, 1 if any member needed
+    the bracketed bit solve).
     """
     n, members = a.shape
     shapes_t = (shapes_t_axial, shapes_t_torsion, shapes_t_y, shapes_t_z)
@@ -134,84 +142,110 @@ def update(iteration, force_t, radial, in_contact, tangent, touching, theta_x_ra
         np.dot(shapes_t[b], force_t[ranges[b, 0]:ranges[b, 1]],
                modal[ranges[b, 2]:ranges[b, 3]])
     # Frozen members were evaluated at their final state: keep that evaluation.
-    for i in range(members):
-        if iteration == 1 or not active[i]:
-            for j in range(force_t.shape[0]):
-                final_full[j, i] = force_t[j, i]
-            for j in range(n):
-                final_modal[j, i] = modal[j, i]
-            for node in range(n_nodes):
-                final_radial[i, node] = radial[i, node]
-                final_contact[i, node] = in_contact[i, node]
-                for r in range(2):
-                    for c in range(2):
-                        final_tangent[i, node, r, c] = tangent[i, node, r, c] if touching \
-                            else 0.0
+    if iteration == 1:
+        final_full[:, :] = force_t
+        final_modal[:, :] = modal
+        final_radial[:, :] = radial
+        final_contact[:, :] = in_contact
+        if touching:
+            final_tangent[:, :, :, :] = tangent
+        else:
+            final_tangent[:, :, :, :] = 0.0
+    else:
+        for i in range(members):
+            if not active[i]:
+                _keep_member(i, force_t, modal, radial, in_contact, tangent, touching,
+                             final_full, final_modal, final_radial, final_contact,
+                             final_tangent)
     # R = M a + C v + K d - Phi^T f - g, then y = S0^-1 R.
     if mass_is_identity:
         residual[:, :] = a
     else:
         np.dot(mass, a, residual)
-    np.dot(damping, work_v, product)
+    _block_product(damping, groups, work_v, product)
     residual += product
     if stiffness_diagonal.shape[0] > 0:
         for j in range(n):
+            k = stiffness_diagonal[j]
             for i in range(members):
-                residual[j, i] += work_d[j, i] * stiffness_diagonal[j]
+                residual[j, i] += work_d[j, i] * k
     else:
         np.dot(stiffness, work_d, product)
         residual += product
     for j in range(n):
+        g = load[j]
         for i in range(members):
-            residual[j, i] = residual[j, i] - modal[j, i] - load[j]
-    np.dot(effective_inverse, residual, y)
-    gdt = GAMMA * dt
-    still, robust_used = 0, 0
-    axial0, axial1 = ranges[0, 2], ranges[0, 3]
+            residual[j, i] = residual[j, i] - modal[j, i] - g
+    _block_product(effective_inverse, groups, residual, y)
+    # S^-1 with the contact tangents (Woodbury), members on the wall only.
     for i in range(members):
-        was_active = active[i]
-        flexibility = bit_flexibility
-        response[:, :] = bit_response
-        if touching and _touches(in_contact, i, n_nodes):
-            flexibility = _woodbury(i, in_contact, tangent, n_nodes, dt2, local_directions,
-                                    local_response, local_gram, bit_rows, y, response)
-        rop = 0.0
-        for j in range(axial0, axial1):
-            rop += bit_rows[0, j] * work_v[j, i]
+        on_wall[i] = touching > 0 and _touches(in_contact, i, n_nodes)
+        if on_wall[i]:
+            responses[i, :, :] = bit_response
+            flexibilities[i, :, :] = _woodbury(i, in_contact, tangent, n_nodes, dt2,
+                                               local_directions, local_response, local_gram,
+                                               bit_rows, y, responses[i])
+        else:
+            flexibilities[i, :, :] = bit_flexibility
+    # The iterate's bit velocities (start), B^T y, |v|.
+    rop, by0, by1 = scratch[0], scratch[1], scratch[2]
+    speed, p0, p1 = scratch[3], scratch[4], scratch[5]
+    rop[:] = 0.0
+    by0[:] = 0.0
+    by1[:] = 0.0
+    speed[:] = 0.0
+    for j in range(ranges[0, 2], ranges[0, 3]):
+        row = bit_rows[0, j]
+        for i in range(members):
+            rop[i] += row * work_v[j, i]
+    for j in range(n):
+        row0, row1 = bit_rows[0, j], bit_rows[1, j]
+        for i in range(members):
+            by0[i] += y[j, i] * row0
+            by1[i] += y[j, i] * row1
+            speed[i] += work_v[j, i] * work_v[j, i]
+    gdt = GAMMA * dt
+    robust_used = 0
+    for i in range(members):
         omega = theta_x_rate_t[bit_node, i]
-        by0, by1 = 0.0, 0.0
-        for j in range(n):
-            by0 += y[j, i] * bit_rows[0, j]
-            by1 += y[j, i] * bit_rows[1, j]
-        linear0, linear1 = rop - gdt * by0, omega - gdt * by1
+        linear0, linear1 = rop[i] - gdt * by0[i], omega - gdt * by1[i]
         g = min(i, germ.shape[0] - 1)
         if bit_rock:
             x0, x1, f0, f1, lifted, j00, j01, j10, j11, solved, robust = _solve_bit(
-                linear0, linear1, flexibility, rop, omega, touch[i], gdt, static_force,
-                germ[g, 0, 0], germ[g, 0, 1], germ[g, 1, 1], random, law, fade_speed)
+                linear0, linear1, flexibilities[i], rop[i], omega, touch[i], gdt,
+                static_force, germ[g, 0, 0], germ[g, 0, 1], germ[g, 1, 1], random, law,
+                fade_speed)
             robust_used |= robust
         else:
             x0, x1, f0, f1 = linear0, linear1, static_force, 0.0
             lifted, solved = False, True
             j00 = j01 = j10 = j11 = 0.0
-        p0, p1 = f0 - static_force, f1 - 0.0
-        norm = 0.0
-        for j in range(n):
-            updated = a[j, i] - y[j, i] + (p0 * response[j, 0] + p1 * response[j, 1])
-            if was_active:
-                increment = a[j, i] - updated
-                norm += increment * increment
-                a[j, i] = updated
-        if was_active:
+        p0[i], p1[i] = f0 - static_force, f1 - 0.0
+        if active[i]:
             bit_rop[i], bit_omega[i], bit_force[i], bit_torque[i] = x0, x1, f0, f1
             bit_lifted[i], bit_solved[i] = lifted, solved
             bit_jacobian[i, 0, 0], bit_jacobian[i, 0, 1] = j00, j01
             bit_jacobian[i, 1, 0], bit_jacobian[i, 1, 1] = j10, j11
-        bit_ok[i] = bit_ok[i] and (not was_active or solved)
-        speed = 0.0
-        for j in range(n):
-            speed += work_v[j, i] * work_v[j, i]
-        new_error = gdt * np.sqrt(norm) / (np.sqrt(speed) + VELOCITY_SCALE)
+    # a = a - y + S^-1 B (F - F_c) for the active members, and |increment|^2.
+    norm = by0                                           # (B^T y is used up)
+    norm[:] = 0.0
+    for j in range(n):
+        r0, r1 = bit_response[j, 0], bit_response[j, 1]
+        for i in range(members):
+            if active[i]:
+                if on_wall[i]:
+                    updated = a[j, i] - y[j, i] + (p0[i] * responses[i, j, 0]
+                                                   + p1[i] * responses[i, j, 1])
+                else:
+                    updated = a[j, i] - y[j, i] + (p0[i] * r0 + p1[i] * r1)
+                increment = a[j, i] - updated
+                norm[i] += increment * increment
+                a[j, i] = updated
+    still = 0
+    for i in range(members):
+        was_active = active[i]
+        bit_ok[i] = bit_ok[i] and (not was_active or bit_solved[i])
+        new_error = gdt * np.sqrt(norm[i]) / (np.sqrt(speed[i]) + VELOCITY_SCALE)
         previous_error[i] = error[i]
         if was_active:
             error[i] = new_error
@@ -220,7 +254,7 @@ def update(iteration, force_t, radial, in_contact, tangent, touching, theta_x_ra
         if iteration == 1 and now and have_rate:
             accept = np.isfinite(rate[i]) and since[i] < VERIFY_EVERY
             if accept and have_active:
-                accept = previous_lifted[i] == lifted
+                accept = previous_lifted[i] == bit_lifted[i]
                 for node in range(n_nodes):
                     accept = accept and previous_contact[i, node] == in_contact[i, node]
             if accept and rate[i] / (1.0 - rate[i]) * error[i] <= tolerance:
@@ -234,6 +268,32 @@ def update(iteration, force_t, radial, in_contact, tangent, touching, theta_x_ra
         active[i] = now and not done
         still += active[i]
     return still, robust_used
+
+
+@inline
+def _block_product(blocks, groups, x, out):
+    """out = A x for a block-diagonal A given by its diagonal blocks (4,) on the row groups
+    (4, 2) (start, stop) (an empty group is skipped)."""
+    for b in range(4):
+        start, stop = groups[b, 0], groups[b, 1]
+        if stop > start:
+            np.dot(blocks[b], x[start:stop], out[start:stop])
+
+
+@inline
+def _keep_member(i, force_t, modal, radial, in_contact, tangent, touching, final_full,
+                 final_modal, final_radial, final_contact, final_tangent):
+    """Copy member i's evaluation into the final one."""
+    for j in range(force_t.shape[0]):
+        final_full[j, i] = force_t[j, i]
+    for j in range(modal.shape[0]):
+        final_modal[j, i] = modal[j, i]
+    for node in range(radial.shape[1]):
+        final_radial[i, node] = radial[i, node]
+        final_contact[i, node] = in_contact[i, node]
+        for r in range(2):
+            for c in range(2):
+                final_tangent[i, node, r, c] = tangent[i, node, r, c] if touching else 0.0
 
 
 @inline
@@ -387,7 +447,8 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out):
     bookkeeping: (have_rate, have_active, rate, since, previous_contact, previous_lifted);
     forces: the arguments of forces.string_forces before the kinematics;
     operators: (shapes (4,), shapes_t (4,), ranges, bit_node, n_nodes, mass, mass is I,
-    damping, stiffness, stiffness diagonal, S0^-1, local directions, S0^-1 U, U^T S0^-1 U,
+    damping blocks (4,), stiffness, stiffness diagonal, S0^-1 blocks (4,), their row groups
+    (4, 2), local directions, S0^-1 U, U^T S0^-1 U,
     B^T, S0^-1 B, B^T S0^-1 B, bit axial row, bit axial and torsion DOF, dt, beta dt^2
     (the contact's), tolerance, static force on bit, bit_rock, law constants, fade speed,
     germs, random);
@@ -402,11 +463,11 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out):
     have_rate, have_active, rate, since, previous_contact, previous_lifted = bookkeeping
     switches, strain_arguments, coupling_arguments, contact_arguments = forces
     (shapes, shapes_t, ranges, bit_node, n_nodes, mass, mass_is_identity, damping, stiffness,
-     stiffness_diagonal, effective_inverse, local_directions, local_response, local_gram,
+     stiffness_diagonal, effective_inverse, groups, local_directions, local_response, local_gram,
      bit_rows, bit_response, bit_flexibility, bit_axial_row, axial_index, torsion_index, dt,
      dt2, tolerance, static_force, bit_rock, law, fade_speed, germ, random) = operators
-    (d_pred, v_pred, a, d, v, residual, y, modal, product, response, touch, hole, error,
-     previous_error, active, bit_ok, displacement_t, theta_x_rate_t, theta_x_acceleration_t,
+    (d_pred, v_pred, a, d, v, residual, y, modal, product, responses, touch, hole, error,
+     previous_error, active, bit_ok, scratch, flexibilities, on_wall, displacement_t, theta_x_rate_t, theta_x_acceleration_t,
      bending_y_rate_t, bending_y_acceleration_t, bending_z_rate_t, strain, linear, stress,
      coupling, force_t, radial, in_contact, tangent) = work
     (final_full, final_modal, final_radial, final_contact, final_tangent, bit_rop, bit_omega,
@@ -432,11 +493,11 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out):
             iteration, force_t, radial, in_contact, tangent, touching, theta_x_rate_t,
             bit_node, n_nodes, shapes_t[0], shapes_t[1], shapes_t[2], shapes_t[3], ranges,
             mass, mass_is_identity, damping, stiffness, stiffness_diagonal, effective_inverse,
-            local_directions, local_response, local_gram, bit_rows, bit_response,
+            groups, local_directions, local_response, local_gram, bit_rows, bit_response,
             bit_flexibility, dt, dt2, tolerance, load, static_force, bit_rock, law,
             fade_speed, germ, random, have_rate, have_active, rate, since, previous_contact,
-            previous_lifted, d, v, a, modal, residual, y, product, response, touch, error,
-            previous_error, active, bit_ok, final_full, final_modal, final_radial,
+            previous_lifted, d, v, a, modal, residual, y, product, responses, touch, error,
+            previous_error, active, bit_ok, scratch, flexibilities, on_wall, final_full, final_modal, final_radial,
             final_contact, final_tangent, bit_rop, bit_omega, bit_force, bit_torque,
             bit_lifted, bit_jacobian, bit_solved)
         robust += used
