@@ -159,7 +159,7 @@ def solve_one(b1, b2, c1, c2, rho, g11, g12, g22, random, guess, k):
     return rop, omega, f1, f2, x, cut
 
 
-@inline
+@kernel
 def _axial_residual(parameter, b1, b2, c1, c2, rho, germ, warm, k):
     """G(P) = ROP(P, omega(P)) - b1 - c1 F1; warm[0]: the last omega found (updated)."""
     omega = _torsion(parameter, b2, c2, rho, germ, warm[0], k)
@@ -169,7 +169,7 @@ def _axial_residual(parameter, b1, b2, c1, c2, rho, germ, warm, k):
     return rop - b1 - c1 * f1
 
 
-@inline
+@kernel
 def _torsion_residual(omega, parameter, b2, c2, rho, germ, k):
     return omega - b2 - c2 * _point(parameter, omega, rho, germ, k)[2]
 
@@ -228,7 +228,7 @@ def _mean_axial_root(omega, b1, c1, rho, k):
     return -force if b1 > top else 0.0
 
 
-@inline
+@kernel
 def _point(parameter, omega, rho, germ, k):
     """The graph's point at P (module docstring): (ROP, F1, F2, cutting rate)."""
     if parameter > 0:
