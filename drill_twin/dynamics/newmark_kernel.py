@@ -17,7 +17,8 @@ from __future__ import annotations
 import numpy as np
 
 from drill_twin.dynamics.bit_equation import solve_one
-from drill_twin.dynamics.bit_rock import cutting_rate, law_point, maximum, minimum
+from drill_twin.dynamics.bit_rock import (TORQUE_FADE_FORCE_N, cutting_rate, law_point, maximum,
+                                          minimum)
 from drill_twin.dynamics.compiled import inline, kernel
 from drill_twin.dynamics.forces import string_forces
 
@@ -27,7 +28,6 @@ VELOCITY_SCALE = 1e-9
 """Added to the velocity norm in the convergence test (modal units, sqrt(kg) m/s)."""
 VERIFY_EVERY = 25
 """A step runs at least two iterations this often, to measure the contraction rate."""
-TORQUE_FADE_FORCE_N = 1e3
 
 
 class StepWork:
@@ -467,8 +467,9 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out):
      bit_rows, bit_response, bit_flexibility, bit_axial_row, axial_index, torsion_index, dt,
      dt2, tolerance, static_force, bit_rock, law, fade_speed, germ, random) = operators
     (d_pred, v_pred, a, d, v, residual, y, modal, product, responses, touch, hole, error,
-     previous_error, active, bit_ok, scratch, flexibilities, on_wall, displacement_t, theta_x_rate_t, theta_x_acceleration_t,
-     bending_y_rate_t, bending_y_acceleration_t, bending_z_rate_t, strain, linear, stress,
+     previous_error, active, bit_ok, scratch, flexibilities, on_wall, displacement_t,
+     theta_x_rate_t, theta_x_acceleration_t, bending_y_rate_t, bending_y_acceleration_t,
+     bending_z_rate_t, strain, linear, stress,
      coupling, force_t, radial, in_contact, tangent) = work
     (final_full, final_modal, final_radial, final_contact, final_tangent, bit_rop, bit_omega,
      bit_force, bit_torque, bit_lifted, bit_jacobian, bit_solved) = final
@@ -497,8 +498,9 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out):
             bit_flexibility, dt, dt2, tolerance, load, static_force, bit_rock, law,
             fade_speed, germ, random, have_rate, have_active, rate, since, previous_contact,
             previous_lifted, d, v, a, modal, residual, y, product, responses, touch, error,
-            previous_error, active, bit_ok, scratch, flexibilities, on_wall, final_full, final_modal, final_radial,
-            final_contact, final_tangent, bit_rop, bit_omega, bit_force, bit_torque,
+            previous_error, active, bit_ok, scratch, flexibilities, on_wall, final_full,
+            final_modal, final_radial, final_contact, final_tangent, bit_rop, bit_omega,
+            bit_force, bit_torque,
             bit_lifted, bit_jacobian, bit_solved)
         robust += used
         if still == 0:
