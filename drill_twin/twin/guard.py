@@ -81,15 +81,20 @@ class StateGuard:
         self.string_length_m = mesh.total_length_m
         self._clearance_max_m = float(np.max(self.clearance_m))
         axial = system.blocks['axial']
-        self._bit_row = axial.shapes[system.bit_node]
-        self._axial = axial.columns
-        self._top_row = system.top_axial_row[axial.columns]
+        # Rows over all reduced coordinates (zero outside their block), so a check is a few
+        # products of the state as it is, without gathering columns: the bit's and the top's
+        # axial displacement (size,), v and w of every node (size, n_nodes; the bending
+        # blocks' rows: v then theta_z, w then theta_y).
+        self._bit_row = np.zeros(system.size)
+        self._bit_row[axial.columns] = axial.shapes[system.bit_node]
+        self._top_row = np.zeros(system.size)
+        self._top_row[axial.columns] = system.top_axial_row[axial.columns]
         nodes = system.n_nodes
-        # v and w of every node from the bending blocks alone (rows: v then theta_z, w then
-        # theta_y).
-        self._bending = [(system.blocks[name].columns,
-                          np.ascontiguousarray(system.blocks[name].shapes[:nodes].T))
-                         for name in ('bending_y', 'bending_z')]
+        self._bending = []
+        for name in ('bending_y', 'bending_z'):
+            rows = np.zeros((system.size, nodes))
+            rows[system.blocks[name].columns] = system.blocks[name].shapes[:nodes].T
+            self._bending.append(rows)
         self._mass = None if np.array_equal(system.mass, np.eye(system.size)) else system.mass
         self._deepest = None
 
@@ -138,17 +143,20 @@ class StateGuard:
         rop, omega = forces.rop_m_per_s, forces.bit_speed_rad_per_s
         wob, tob = forces.weight_on_bit_n, forces.torque_on_bit_nm
         finite &= np.isfinite(rop) & np.isfinite(omega) & np.isfinite(wob) & np.isfinite(tob)
-        q = np.where(finite[:, None], state.q, 0.0)
-        rate = np.where(finite[:, None], state.q_rate, 0.0)
-        depth = self.string_length_m + q[:, self._axial] @ self._bit_row
+        q, rate = state.q, state.q_rate
+        if not finite.all():                     # the others are measured, the bad zeroed
+            q = np.where(finite[:, None], q, 0.0)
+            rate = np.where(finite[:, None], rate, 0.0)
+        depth = self.string_length_m + q @ self._bit_row
         values = {'finite': finite, 'depth': depth, 'hole': self._hole_depth(simulator, depth),
-                  'rop': rop, 'top_axial_speed': rate[:, self._axial] @ self._top_row,
+                  'rop': rop, 'top_axial_speed': rate @ self._top_row,
                   'bit_speed': omega, 'wob': wob, 'tob': tob,
-                  'kinetic_energy': 0.5 * np.sum(
-                      (rate if self._mass is None else rate @ self._mass) * rate, axis=1)}
+                  'kinetic_energy': 0.5 * (np.einsum('ij,ij->i', rate, rate)
+                                           if self._mass is None
+                                           else np.sum((rate @ self._mass) * rate, axis=1))}
         if self.lateral:
-            (y_columns, y_rows), (z_columns, z_rows) = self._bending
-            values['radius'] = np.hypot(q[:, y_columns] @ y_rows, q[:, z_columns] @ z_rows)
+            y_rows, z_rows = self._bending
+            values['radius'] = np.hypot(q @ y_rows, q @ z_rows)
         return values
 
     def _reason(self, k: int, values: dict, top_speed_rad_per_s: float) -> str:
