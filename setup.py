@@ -25,6 +25,7 @@ setup(
         'PyYAML>=6.0',
         'matplotlib>=3.7',
         'mcap>=1.1',
+        'zstandard>=0.21',
         'mcap-ros2-support>=0.5',
         'rerun-sdk>=0.41',
         'dask[distributed]>=2024.1',

@@ -11,7 +11,8 @@ import os
 from mcap.records import Channel, Header, Message, Metadata, Schema
 from mcap.writer import CompressionType, MCAP0_MAGIC, Writer
 
-from drill_twin.recording.mcap_log import DEFAULT_CHUNK_SIZE, library_string, PROFILE
+from drill_twin.recording.mcap_log import (DEFAULT_CHUNK_SIZE, library_string, PROFILE,
+                                           use_zstd_level)
 from drill_twin.recording.reader import iter_records
 
 
@@ -37,6 +38,7 @@ def recover_log(source: str | os.PathLike, destination: str | os.PathLike) -> in
     schemas: dict[int, Schema] = {}
     pending_channels: dict[int, Channel] = {}
     copied = 0
+    use_zstd_level()
     with open(destination, 'wb') as stream:
         writer = Writer(stream, chunk_size=DEFAULT_CHUNK_SIZE, compression=CompressionType.ZSTD)
         started = False
