@@ -37,16 +37,16 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import Log
 from rclpy.executors import SingleThreadedExecutor
-from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
-from drill_twin.ros.twin_node import TwinNode
+from drill_twin.ros.parameters import TwinParameters
+from drill_twin.ros.twin_node import create_twin_node
 
 log_dir, policy, split_s = sys.argv[1], sys.argv[2], float(sys.argv[3])
 rclpy.init()
-node = TwinNode(parameter_overrides=[Parameter(k, value=v) for k, v in {
-    'fast': True, 'log_dir': log_dir, 'on_log_error': policy, 'log_split_s': split_s,
-    'ensemble_members': 0, 'duration_s': 5.0}.items()])
+node = create_twin_node(TwinParameters(
+    fast=True, log_dir=log_dir, on_log_error=policy, log_split_s=split_s,
+    ensemble_members=0, duration_s=5.0))
 probe = rclpy.create_node('probe')
 heard = {'diagnostics': [], 'rosout': [], 'last_bit_stamp_ns': -1}
 deep = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE)

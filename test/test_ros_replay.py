@@ -37,20 +37,19 @@ def twin_log(ros, tmp_path_factory):
     """A fast twin run with commands sent over DDS mid-run, its log split every 2 s of twin
     time; returns the log (the bag directory)."""
     from rclpy.executors import SingleThreadedExecutor
-    from rclpy.parameter import Parameter
     from std_msgs.msg import Float64
     from threadpoolctl import threadpool_limits
 
     from drill_twin import interface as itf
     from drill_twin.recording.qos import rclpy_qos_profile
-    from drill_twin.ros.twin_node import TwinNode
+    from drill_twin.ros.parameters import TwinParameters
+    from drill_twin.ros.twin_node import create_twin_node
 
     folder = tmp_path_factory.mktemp('logs')
     with threadpool_limits(limits=1, user_api='blas'):
-        node = TwinNode(parameter_overrides=[
-            Parameter('fast', value=True), Parameter('log_dir', value=str(folder)),
-            Parameter('ensemble_members', value=3), Parameter('seed', value=11),
-            Parameter('duration_s', value=4.0), Parameter('log_split_s', value=2.0)])
+        node = create_twin_node(TwinParameters(
+            fast=True, log_dir=str(folder), ensemble_members=3, seed=11, duration_s=4.0,
+            log_split_s=2.0))
         probe = ros.create_node('probe')
         qos = rclpy_qos_profile(itf.STATE_QOS)
         speed = probe.create_publisher(Float64, itf.CMD_TOP_DRIVE_SPEED, qos)

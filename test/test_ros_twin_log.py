@@ -240,7 +240,7 @@ def test_signal_completes_the_log(env, tmp_path, signal_number, to_group):
 SIGNAL_WHILE_STARTING = '''
 import os, signal, sys, time
 import rclpy
-from drill_twin.ros import twin_node
+from drill_twin.ros import build, twin_node
 
 where, name, log_dir = sys.argv[1:4]
 
@@ -257,7 +257,7 @@ def interrupted(function):
 
 
 if where == 'model':            # before anything of ROS is made but the node itself
-    twin_node.load_config = interrupted(twin_node.load_config)
+    build.load_config = interrupted(build.load_config)
 else:                           # after the log is opened
     twin_node.TwinNode.create_timer = interrupted(twin_node.TwinNode.create_timer)
 sys.exit(twin_node.run(['drill-twin', '--ros-args', '-p', f'log_dir:={log_dir}',

@@ -73,12 +73,14 @@ class Twin:
         from std_msgs.msg import Float64
 
         from drill_twin.recording.qos import rclpy_qos_profile
-        from drill_twin.ros.twin_node import TwinNode
+        from drill_twin.ros.parameters import TwinParameters
+        from drill_twin.ros.twin_node import create_twin_node
 
         values = {'fast': True, 'log_dir': str(log_dir), 'ensemble_members': 4, 'seed': 3,
                   **parameters}
-        self.node = TwinNode(parameter_overrides=[Parameter(k, value=v)
-                                                  for k, v in values.items()])
+        ros_only = {name: values.pop(name) for name in ('use_sim_time',) if name in values}
+        self.node = create_twin_node(TwinParameters.from_values(values), parameter_overrides=[
+            Parameter(k, value=v) for k, v in ros_only.items()])
         self.probe = rclpy.create_node('twin_probe')
         self.received = defaultdict(list)
         deep = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE)
@@ -439,8 +441,8 @@ def test_bad_commands_are_rejected(twin_factory):
         status = twin.statuses('drill_twin: command rejected')[-1]
         values = {kv.key: kv.value for kv in status.values}
         assert status.level == DiagnosticStatus.WARN
-        assert values['command'] == what and float(values['value']) == pytest.approx(value,
-                                                                                    nan_ok=True)
+        assert values['command'] == what
+        assert float(values['value']) == pytest.approx(value, nan_ok=True)
         assert what in status.message and reason in status.message
         line = twin.rosout(Log.WARN, '/drill_twin/cmd/')[-1].msg
         assert line.startswith(f'{topic}: {what} command') and reason in line

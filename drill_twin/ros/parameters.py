@@ -2,7 +2,7 @@
 change while it runs (config/twin.yaml sets them under ``drill_twin: ros__parameters:``)."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, fields, make_dataclass, replace
 
 
 @dataclass(frozen=True)
@@ -40,8 +40,8 @@ PARAMETERS = (
     ParameterSpec('rate_hz', 100.0, 'tick rate of the wall-clock timer; a tick advances the '
                   'twin to the wall clock in model steps (never past it)', safe=False, low=1.0,
                   high=1000.0),
-    ParameterSpec('fast', False, 'run as fast as possible and publish /clock (also with '
-                  'use_sim_time)', safe=False),
+    ParameterSpec('fast', False, 'run as fast as possible and publish /clock (ignored with '
+                  'use_sim_time, which follows an external /clock)', safe=False),
     ParameterSpec('duration_s', 0.0, 'stop after this much simulated time (0: run until '
                   'stopped)', safe=True, low=0.0, high=1e9),
     ParameterSpec('log_dir', 'runs', 'directory of the logs: each run is a rosbag2 bag '
@@ -69,6 +69,35 @@ PARAMETERS = (
                   low=0.0, high=1e8),
 )
 BY_NAME = {p.name: p for p in PARAMETERS}
+
+
+def _with_values(self, **changes):
+    """A copy with ``changes`` (the node replaces its parameters on a change)."""
+    return replace(self, **changes)
+
+
+def _as_dict(self) -> dict:
+    """{name: value} of every parameter."""
+    return {f.name: getattr(self, f.name) for f in fields(self)}
+
+
+def _from_values(cls, values) -> 'TwinParameters':
+    """From {name: value} (defaults for missing names; lists become tuples)."""
+    known = {name: tuple(value) if isinstance(value, list) else value
+             for name, value in values.items() if name in BY_NAME}
+    return cls(**known)
+
+
+TwinParameters = make_dataclass(
+    'TwinParameters',
+    [(p.name, type(p.default), field(default=p.default)) for p in PARAMETERS],
+    frozen=True, slots=True, kw_only=True,
+    namespace={'__doc__': 'The twin node\'s parameters, one field per :data:`PARAMETERS` entry '
+                          '(name, default; SI units as named). Frozen: a change at run time '
+                          'makes a new object (:meth:`with_values`).',
+               'with_values': _with_values, 'as_dict': _as_dict,
+               'from_values': classmethod(_from_values)})
+TwinParameters.__module__ = __name__
 
 
 def unsafe_change_reason(name: str) -> str:
@@ -187,8 +216,8 @@ def parameters_from_ros_arguments(ros_args: list[str],
             path = next(tokens, None)
             if path is None:
                 raise ParameterError('--params-file', '', 'a file name is needed')
-            found.extend((path, name, value) for name, value in parameters_in_file(path,
-                                                                                node_name))
+            found.extend((path, name, value)
+                         for name, value in parameters_in_file(path, node_name))
         elif token in ('-p', '--param'):
             rule = next(tokens, None)
             origin = f'--ros-args {token}'
@@ -259,9 +288,11 @@ def validate_ros_arguments(ros_args: list[str], node_name: str = 'drill_twin') -
     return values
 
 
-def model_overrides(values: dict) -> list[str]:
+def model_overrides(values) -> list[str]:
     """The ``--set`` items the node applies to its model configuration: ``time_step_s``
-    (when > 0) first, then ``model_overrides``."""
+    (when > 0) first, then ``model_overrides`` (``values``: a dict or TwinParameters)."""
+    if not isinstance(values, dict):
+        values = values.as_dict()
     overrides = [item for item in (values.get('model_overrides') or []) if item]
     if values.get('time_step_s', 0) > 0:
         overrides.insert(0, f'integration.time_step_s={values["time_step_s"]!r}')
