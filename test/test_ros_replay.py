@@ -77,11 +77,14 @@ def twin_log(ros, tmp_path_factory):
 
 
 def test_resimulation_reproduces_the_recorded_run(twin_log):
-    from drill_twin.twin.resimulate import resimulate
+    from drill_twin.recording.resimulate import resimulate
 
-    result = resimulate(twin_log)
+    calls = []
+    result = resimulate(twin_log, progress=lambda done, total: calls.append((done, total)))
     assert result.commands == 3
     assert result.compared == 400                      # 4 s at 100 Hz
+    # Progress in simulated seconds: from 0 to the whole 4 s, every 1000 steps and at the end.
+    assert calls[0] == (0.0, 4.0) and calls[-1] == (4.0, 4.0) and len(calls) == 2
     # mean, lower and upper at 10 Hz (ticks 10, 20, ..., 400, stamped a tick behind): the
     # worker process's ensemble of the node against this process's
     assert result.ensemble_compared == 3 * 40
@@ -101,7 +104,7 @@ def test_resimulate_command(twin_log):
 def test_resimulate_the_first_split_alone(twin_log):
     """One split file is a log too: its 2 s are reproduced from the metadata it carries."""
     from drill_twin.recording.reader import log_files
-    from drill_twin.twin.resimulate import resimulate
+    from drill_twin.recording.resimulate import resimulate
 
     first = log_files(twin_log)[0]
     result = resimulate(first)
@@ -136,7 +139,7 @@ def _altered_log(twin_log, path, config_change=None, seed_change=0):
 
 def test_resimulation_detects_a_different_model(twin_log, tmp_path):
     """A log whose model differs from its recorded configuration is not reproduced."""
-    from drill_twin.twin.resimulate import resimulate
+    from drill_twin.recording.resimulate import resimulate
 
     def stiffer_cutting_torque(config):
         config['bit_rock']['a5_n_m'] *= 1.01
@@ -149,7 +152,7 @@ def test_resimulation_detects_a_different_model(twin_log, tmp_path):
 
 def test_resimulation_detects_a_different_seed(twin_log, tmp_path):
     """Another seed draws other germs: the mean model is reproduced, the ensemble is not."""
-    from drill_twin.twin.resimulate import resimulate
+    from drill_twin.recording.resimulate import resimulate
 
     result = resimulate(_altered_log(twin_log, tmp_path / 'reseeded.mcap', seed_change=1))
     assert all(value == 0.0 for value in result.max_difference.values())
