@@ -23,7 +23,7 @@ from drill_twin.recording.bag_writer import BagWriter
 from drill_twin.recording.log_metadata import (LogMetadataError, RECORD_NAME,
                                                TwinLogMetadata)
 from drill_twin.recording.schemas import type_hash
-from drill_twin.recording.synthetic import synthetic_messages
+from synthetic import synthetic_messages
 from drill_twin.recording.topics import twin_topics
 
 STATIONS_M = (700.0, 1590.0)

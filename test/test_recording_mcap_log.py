@@ -20,7 +20,7 @@ from drill_twin.recording.mcap_log import McapLog
 from drill_twin.recording.message_types import import_message_class
 from drill_twin.recording.recovery import recover_log
 from drill_twin.recording.schemas import ros2msg_schema, type_hash
-from drill_twin.recording.synthetic import synthetic_messages
+from synthetic import synthetic_messages
 from drill_twin.recording.topics import twin_topics
 
 STATIONS_M = (700.0, 1250.5)
@@ -307,7 +307,7 @@ def test_importing_the_recording_layer_does_not_import_rclpy(tmp_path):
     code = ('import sys\n'
             'import drill_twin.recording.mcap_log, drill_twin.recording.reader\n'
             'import drill_twin.recording.rerun_view, drill_twin.recording.recovery\n'
-            'import drill_twin.recording.synthetic, drill_twin.recording.topics\n'
+            'import drill_twin.recording.topics\n'
             'assert "rclpy" not in sys.modules, "rclpy imported"\n'
             'assert "rerun" not in sys.modules, "rerun imported"\n')
     subprocess.run([sys.executable, '-c', code], check=True, env=child_env(tmp_path))

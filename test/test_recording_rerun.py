@@ -23,7 +23,7 @@ from drill_twin.recording.rerun_native import (LogNotFound, geometry_of, log_fil
 from drill_twin.recording.rerun_view import (has_display, LOCALHOST, NO_DISPLAY_HINT,
                                              open_viewer, rerun_executable, save_rrd,
                                              viewer_command)
-from drill_twin.recording.synthetic import write_synthetic_log
+from synthetic import write_synthetic_log
 from drill_twin.recording.topics import twin_topics
 
 STATIONS_M = (600.0, 1200.0)
