@@ -13,6 +13,7 @@ Sign conventions at the boundary (SI units):
 from __future__ import annotations
 
 from dataclasses import dataclass
+import re
 
 NODE_NAME = 'drill_twin'
 NAMESPACE_PREFIX = '/drill_twin'
@@ -67,8 +68,21 @@ def station_name(x_m: float) -> str:
 
 
 def station_label(x_m: float) -> str:
-    """Human label of a station for views and tables, e.g. 700.0 -> 'x = 700 m'."""
-    return f'x = {x_m:g} m'
+    """Human label of a station for views and tables, e.g. 700.0 -> '700 m'."""
+    return f'{x_m:g} m'
+
+
+_STATION_DISPLACEMENT = re.compile(r'^/drill_twin/vibration/x(\d+)(?:p(\d+))?m/displacement$')
+
+
+def station_from_topic(topic: str) -> float | None:
+    """Depth (m) of the station whose displacement topic this is (the inverse of
+    :func:`vibration_displacement_topic`), or None for any other topic."""
+    match = _STATION_DISPLACEMENT.match(topic)
+    if match is None:
+        return None
+    whole, fraction = match.groups()
+    return float(f'{whole}.{fraction}' if fraction else whole)
 
 
 def vibration_imu_topic(x_m: float) -> str:

@@ -326,8 +326,6 @@ def send_profiles(recording, geometry: StringGeometry, t_s, contact_force_n,
                   station_radial_m) -> None:
     """Along the depth at each sample: wall contact force at every node (N, (n, nodes)) and
     the stations' radial deflection (m, (n, stations)) as a % of their clearance."""
-    import rerun as rr
-
     t_s = np.asarray(t_s, dtype=float)
     if t_s.size == 0:
         return
@@ -473,7 +471,7 @@ def _orbit_view(geometry: StringGeometry, index: int):
                                   start=rrb.TimeRangeBoundary.cursor_relative(seconds=-TRAIL_S),
                                   end=rrb.TimeRangeBoundary.cursor_relative())
     return rrb.Spatial2DView(
-        name=f'Orbit at {x_m:g} m',
+        name=f'Orbit at {itf.station_label(x_m)}',
         origin=entity, contents=[f'{entity}/{part}' for part in (
             'wall', 'contact_circle', 'axes', 'labels', 'orbit', 'pipe')],
         visual_bounds=rrb.VisualBounds2D(x_range=[-reach, reach],
@@ -498,7 +496,7 @@ def _lateral_tab(geometry: StringGeometry):
                                   origin='along/contact_force', plot_legend=_legend(False)))
     for x_m in geometry.stations_m:
         entity = station_entity(x_m)
-        views.append(_series(f'Radial deflection at {x_m:g} m (mm)',
+        views.append(_series(f'Radial deflection at {itf.station_label(x_m)} (mm)',
                              [f'{entity}/radial', f'{entity}/clearance']))
     views.append(rrb.BarChartView(name='Deflection, % of clearance, vs depth (m)',
                                   origin='along/deflection', plot_legend=_legend(False)))

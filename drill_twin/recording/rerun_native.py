@@ -16,7 +16,6 @@ from collections import defaultdict
 from dataclasses import dataclass, field
 import os
 from pathlib import Path
-import re
 from typing import Iterable, Sequence
 
 import numpy as np
@@ -28,8 +27,6 @@ from drill_twin.recording import rerun_layout as layout
 PROFILE_RATE_HZ = 10.0
 """Samples per second of run time for the along-the-depth bar charts."""
 HEALTH_NAME = 'drill_twin: twin health'
-
-_STATION = re.compile(r'^/drill_twin/vibration/x(\d+)(?:p(\d+))?m/displacement$')
 
 
 class LogNotFound(FileNotFoundError):
@@ -58,13 +55,8 @@ def log_files(source) -> list[Path]:
 def stations_from_topics(topic_names: Iterable[str]) -> list[float]:
     """Station depths (m) named by the displacement topics, sorted (the inverse of
     :func:`drill_twin.interface.station_name`)."""
-    stations = []
-    for topic in topic_names:
-        match = _STATION.match(topic)
-        if match:
-            whole, fraction = match.groups()
-            stations.append(float(f'{whole}.{fraction}' if fraction else whole))
-    return sorted(stations)
+    stations = (itf.station_from_topic(topic) for topic in topic_names)
+    return sorted(x_m for x_m in stations if x_m is not None)
 
 
 @dataclass
