@@ -37,7 +37,7 @@ setup(
         # they come from PyPI's ROS wheels.
         'ros': ['ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces'],
         'test': ['pytest>=7', 'pytest-timeout', 'sympy>=1.12', 'wheel', 'pandas', 'hypothesis>=6',
-                 'rosbags>=0.10'],
+                 'rosbags>=0.10', 'flake8>=7', 'flake8-docstrings>=1.7', 'pydocstyle>=6.3'],
     },
     zip_safe=True,
     maintainer='drill_twin developers',

@@ -1,4 +1,5 @@
-"""The twin's ROS interface: topic names, message types, joint names and QoS.
+"""
+The twin's ROS interface: topic names, message types, joint names and QoS.
 
 This module imports nothing from ROS so that the recorder, the viewer, the tests and the
 documentation share one definition with the node.
@@ -76,8 +77,10 @@ _STATION_DISPLACEMENT = re.compile(r'^/drill_twin/vibration/x(\d+)(?:p(\d+))?m/d
 
 
 def station_from_topic(topic: str) -> float | None:
-    """Depth (m) of the station whose displacement topic this is (the inverse of
-    :func:`vibration_displacement_topic`), or None for any other topic."""
+    """
+    Depth (m) of the station whose displacement topic this is (the inverse of
+    :func:`vibration_displacement_topic`), or None for any other topic.
+    """
     match = _STATION_DISPLACEMENT.match(topic)
     if match is None:
         return None

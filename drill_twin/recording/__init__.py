@@ -1,4 +1,5 @@
-"""Recording layer of drill_twin: rosbag2 bags of MCAP files and their rerun views.
+"""
+Recording layer of drill_twin: rosbag2 bags of MCAP files and their rerun views.
 
 Modules (none imports rclpy or rerun at import time):
 

@@ -1,4 +1,5 @@
-"""A rosbag2 bag on disk: a directory of MCAP split files and its ``metadata.yaml``.
+"""
+A rosbag2 bag on disk: a directory of MCAP split files and its ``metadata.yaml``.
 
 Layout (what ``ros2 bag record -s mcap --max-bag-duration`` leaves)::
 
@@ -120,7 +121,8 @@ class BagMetadata:
         return yaml.safe_dump(self.to_dict(), sort_keys=False, default_flow_style=False)
 
     def write(self, directory: str | os.PathLike) -> None:
-        """Write ``directory/metadata.yaml`` atomically (temporary file, fsync, rename).
+        """
+        Write ``directory/metadata.yaml`` atomically (temporary file, fsync, rename).
 
         Raises OSError (e.g. ENOSPC) with the old file, if any, left in place.
         """
@@ -170,7 +172,8 @@ def listed_splits(directory: str | os.PathLike) -> list[Path]:
 
 
 def split_files(path: str | os.PathLike) -> list[Path]:
-    """Every MCAP file of a log in recording order.
+    """
+    Every MCAP file of a log in recording order.
 
     ``path`` is a single ``.mcap`` file (-> [path]) or a bag directory: the splits its
     ``metadata.yaml`` lists, then any other ``.mcap`` file in it (a split being written, or

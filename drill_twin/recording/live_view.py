@@ -1,4 +1,5 @@
-"""The twin streamed to a rerun viewer while it runs, with the layout of the recorded view.
+"""
+The twin streamed to a rerun viewer while it runs, with the layout of the recorded view.
 
 :class:`LiveView` takes the engine's :class:`~drill_twin.twin.engine.TwinSnapshot` after
 each tick, keeps samples at most ``sample_rate_hz`` per second of twin time (contact-force
@@ -30,7 +31,8 @@ def _bit_row(state) -> tuple[float, ...]:
 
 
 class LiveView:
-    """Stream twin snapshots to rerun (see the module docstring).
+    """
+    Stream twin snapshots to rerun (see the module docstring).
 
     Args:
         stations_m: depths (m) of the measurement stations, in the snapshot's order.
@@ -74,8 +76,10 @@ class LiveView:
     # -- viewer ------------------------------------------------------------------------------
     def spawn_viewer(self, *, web: bool = False, port: int = 9876,
                      web_port: int = 9090) -> subprocess.Popen:
-        """Start a rerun viewer (native, or the web viewer) bound to 127.0.0.1 and stream to
-        it; returns the viewer process (left running when the twin stops)."""
+        """
+        Start a rerun viewer (native, or the web viewer) bound to 127.0.0.1 and stream to
+        it; returns the viewer process (left running when the twin stops).
+        """
         from drill_twin.recording.rerun_view import viewer_command
 
         self.viewer = subprocess.Popen(viewer_command(None, web=web, port=port,
@@ -89,8 +93,10 @@ class LiveView:
         self._style()
 
     def _style(self) -> None:
-        """Log the static styles and drawings once the recording has its sink (static data
-        logged before ``save``/``connect`` did not all reach the viewer in rerun 0.41)."""
+        """
+        Log the static styles and drawings once the recording has its sink (static data
+        logged before ``save``/``connect`` did not all reach the viewer in rerun 0.41).
+        """
         layout.log_styles(self.recording, self.geometry)
         self._styled = True
 
@@ -102,8 +108,10 @@ class LiveView:
         self._commands: dict[str, list] = {'speed': [], 'hook': []}
 
     def update(self, snapshot, time_s: float | None = None) -> None:
-        """Take the snapshot of a tick at twin time ``time_s`` (s since the start; default
-        ``snapshot.time_s``); sends buffered samples when a send is due."""
+        """
+        Take the snapshot of a tick at twin time ``time_s`` (s since the start; default
+        ``snapshot.time_s``); sends buffered samples when a send is due.
+        """
         t = float(snapshot.time_s if time_s is None else time_s)
         for event in snapshot.events:
             self._events.append((float(event.time_s), f'{event.kind.replace("_", " ")}: '

@@ -1,4 +1,5 @@
-"""Write the twin's topics to an MCAP file that rosbag2 and rerun read.
+"""
+Write the twin's topics to an MCAP file that rosbag2 and rerun read.
 
 The file has what ``rosbag2_storage_mcap`` (Jazzy) writes:
 
@@ -70,7 +71,8 @@ def library_string() -> str:
 
 
 class _LeveledZstd:
-    """Stands in for the ``zstandard`` module inside :mod:`mcap.writer`.
+    """
+    Stands in for the ``zstandard`` module inside :mod:`mcap.writer`.
 
     mcap's Writer compresses a chunk with ``zstandard.compress(data)`` (zstd's default level 3)
     and has no option for the level; this object gives it the same call at ``level``. A new
@@ -91,7 +93,8 @@ def use_zstd_level(level: int = ZSTD_LEVEL) -> None:
 
 
 class _KernelFile:
-    """A write-only file whose every ``write`` reaches the kernel in full.
+    """
+    A write-only file whose every ``write`` reaches the kernel in full.
 
     The mcap writer calls ``write`` only when a record or a whole chunk is complete, so no
     user-space buffer is needed and none can be lost when the process is killed.  (Not an
@@ -130,7 +133,8 @@ def _check_time(value, what: str) -> int:
 
 
 class McapLog:
-    """A rosbag2-compatible MCAP log; a context manager, safe to finish twice.
+    """
+    A rosbag2-compatible MCAP log; a context manager, safe to finish twice.
 
     Usage::
 
@@ -208,7 +212,8 @@ class McapLog:
     # -- registration ----------------------------------------------------------------------
 
     def add_topic(self, topic: str, type_name: str, qos: QosSpec = STATE_QOS) -> int:
-        """Register a topic (schema and channel); returns its MCAP channel id.
+        """
+        Register a topic (schema and channel); returns its MCAP channel id.
 
         Registering the same topic again with the same type returns the existing channel.
 
@@ -260,7 +265,8 @@ class McapLog:
 
     def write(self, topic: str, msg, log_time_ns: int, publish_time_ns: int | None = None
               ) -> None:
-        """Serialize ``msg`` (CDR, rclpy) and write it on ``topic``.
+        """
+        Serialize ``msg`` (CDR, rclpy) and write it on ``topic``.
 
         :param log_time_ns: receive/record time, ns (rosbag2 plays back by it).
         :param publish_time_ns: send time, ns; defaults to ``log_time_ns``.

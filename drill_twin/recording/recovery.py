@@ -1,4 +1,5 @@
-"""Turn a log cut short (killed recorder, full disk) into a complete MCAP file.
+"""
+Turn a log cut short (killed recorder, full disk) into a complete MCAP file.
 
 The readable prefix (every complete chunk, see :mod:`drill_twin.recording.reader`) is copied
 record by record into a new file with a summary and footer, so that tools that need the
@@ -21,7 +22,8 @@ class NotMcapError(ValueError):
 
 
 def recover_log(source: str | os.PathLike, destination: str | os.PathLike) -> int:
-    """Copy the readable records of ``source`` into a complete MCAP ``destination``.
+    """
+    Copy the readable records of ``source`` into a complete MCAP ``destination``.
 
     Schemas, channels (with their metadata), messages (times unchanged) and metadata
     records are kept; the header's profile is kept; chunks are zstd-compressed.  Returns

@@ -1,4 +1,5 @@
-"""The twin's rerun layout: entities, units, styles and blueprint, shared by the recorded
+"""
+The twin's rerun layout: entities, units, styles and blueprint, shared by the recorded
 view (:mod:`~drill_twin.recording.rerun_native`) and the live one
 (:mod:`~drill_twin.recording.live_view`).
 
@@ -70,8 +71,10 @@ class StringGeometry:
 
     @classmethod
     def from_config(cls, config, stations_m: Sequence[float] | None = None) -> 'StringGeometry':
-        """From a :class:`~drill_twin.config.schema.DrillStringConfig`; stations default to
-        ``config.output.stations_m``."""
+        """
+        From a :class:`~drill_twin.config.schema.DrillStringConfig`; stations default to
+        ``config.output.stations_m``.
+        """
         from drill_twin.fem.mesh import build_mesh
 
         mesh = build_mesh(config)
@@ -262,9 +265,11 @@ def _ensemble_values(states) -> dict[str, np.ndarray]:
 
 
 def send_ensemble(recording, t_s, mean, lower, upper) -> None:
-    """Ensemble mean and 2.5/97.5 % quantiles, arrays (n, 6) in BitState field order
+    """
+    Ensemble mean and 2.5/97.5 % quantiles, arrays (n, 6) in BitState field order
     (depth, ROP, WOB, angle, speed, TOB; SI).  The band is :data:`BAND_LINES` lines from
-    the lower to the upper bound."""
+    the lower to the upper bound.
+    """
     means, lows, highs = map(_ensemble_values, (mean, lower, upper))
     fractions = np.linspace(0.0, 1.0, BAND_LINES)
     for key in ENSEMBLE_QUANTITIES:
@@ -283,7 +288,8 @@ def send_ensemble_model(recording, t_s, rop_m_per_s, weight_on_bit_n, speed_rad_
 
 def send_station(recording, geometry: StringGeometry, index: int, t_s, v_m, w_m,
                  previous: tuple[float, float] | None = None) -> None:
-    """One station's lateral motion: orbit segments, pipe outline, radial deflection.
+    """
+    One station's lateral motion: orbit segments, pipe outline, radial deflection.
 
     ``previous``: the (v, w) before the first sample (m), to join batches of a live view.
     """
@@ -324,8 +330,10 @@ def _log_data_styles(recording, geometry: StringGeometry) -> None:
 
 def send_profiles(recording, geometry: StringGeometry, t_s, contact_force_n,
                   station_radial_m) -> None:
-    """Along the depth at each sample: wall contact force at every node (N, (n, nodes)) and
-    the stations' radial deflection (m, (n, stations)) as a % of their clearance."""
+    """
+    Along the depth at each sample: wall contact force at every node (N, (n, nodes)) and
+    the stations' radial deflection (m, (n, stations)) as a % of their clearance.
+    """
     t_s = np.asarray(t_s, dtype=float)
     if t_s.size == 0:
         return
@@ -353,7 +361,8 @@ class _ArrowBatch:
 
 
 def _bar_values(values: np.ndarray):
-    """A column of bar-chart value vectors, one per row of ``values`` (n, bars).
+    """
+    A column of bar-chart value vectors, one per row of ``values`` (n, bars).
 
     ``rr.BarChart.columns`` stacks equal-length rows into one 2-D tensor, and building one
     ``TensorData`` per row costs milliseconds; the Arrow array is built here directly.
@@ -395,8 +404,10 @@ def _log_bar_axes(recording, geometry: StringGeometry) -> None:
 
 
 def send_health(recording, t_s, values: dict[str, Sequence[float]]) -> None:
-    """Health figures: 'real_time_factor', 'tick_time_ms', 'tick_time_max_ms',
-    'iterations_per_step', 'ensemble_iterations_per_step', 'resets' (any subset)."""
+    """
+    Health figures: 'real_time_factor', 'tick_time_ms', 'tick_time_max_ms',
+    'iterations_per_step', 'ensemble_iterations_per_step', 'resets' (any subset).
+    """
     for key, entity in (('real_time_factor', 'diagnostics/real_time_factor'),
                         ('tick_time_ms', 'diagnostics/tick_time'),
                         ('tick_time_max_ms', 'diagnostics/tick_time_max'),
@@ -544,7 +555,8 @@ def _diagnostics_tab():
 
 def twin_blueprint(geometry: StringGeometry, *, active_tab: int | str = 0,
                    follow: bool = True):
-    """The rerun blueprint of the twin's views (tabs :data:`TABS`).
+    """
+    The rerun blueprint of the twin's views (tabs :data:`TABS`).
 
     :param active_tab: the tab shown first (index or name).
     :param follow: start with the time cursor following the newest data (at the end of a

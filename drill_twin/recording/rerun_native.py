@@ -1,4 +1,5 @@
-"""A twin log as native rerun data: read the MCAP file(s), write one ``.rrd`` with the layout.
+"""
+A twin log as native rerun data: read the MCAP file(s), write one ``.rrd`` with the layout.
 
 rerun's own MCAP importer shows raw ROS fields on wall-clock time; it cannot convert units,
 shade a band or draw an orbit.  Here the log is read with the project's reader
@@ -34,9 +35,11 @@ class LogNotFound(FileNotFoundError):
 
 
 def log_files(source) -> list[Path]:
-    """The MCAP files of a log, in order: a file, a bag directory, or a list of these
+    """
+    The MCAP files of a log, in order: a file, a bag directory, or a list of these
     (:func:`drill_twin.recording.reader.log_files` for each); LogNotFound (one line) if an
-    item is not a log."""
+    item is not a log.
+    """
     from drill_twin.recording import reader
 
     if isinstance(source, (str, os.PathLike)):
@@ -53,8 +56,10 @@ def log_files(source) -> list[Path]:
 
 
 def stations_from_topics(topic_names: Iterable[str]) -> list[float]:
-    """Station depths (m) named by the displacement topics, sorted (the inverse of
-    :func:`drill_twin.interface.station_name`)."""
+    """
+    Station depths (m) named by the displacement topics, sorted (the inverse of
+    :func:`drill_twin.interface.station_name`).
+    """
     stations = (itf.station_from_topic(topic) for topic in topic_names)
     return sorted(x_m for x_m in stations if x_m is not None)
 
@@ -176,9 +181,11 @@ def _rosout(run: RunColumns, type_name: str, data: bytes, t_s: float) -> None:
 
 def geometry_of(run: RunColumns, stations_m: Sequence[float] | None = None
                 ) -> layout.StringGeometry:
-    """The string's geometry from the log's configuration (the built-in one if the log has
+    """
+    The string's geometry from the log's configuration (the built-in one if the log has
     none or an unreadable one) and its stations (given, else those with a displacement
-    topic in the log)."""
+    topic in the log).
+    """
     import yaml
 
     from drill_twin.config import build_config, ConfigError, load_config
@@ -252,7 +259,8 @@ def _send_ensemble(recording, run: RunColumns) -> None:
 def write_rrd(source, rrd_path: str | os.PathLike, stations_m: Sequence[float] | None = None,
               *, active_tab: int | str = 0, application_id: str = layout.APPLICATION_ID
               ) -> Path:
-    """Convert a twin log into one self-contained ``.rrd`` (data and blueprint).
+    """
+    Convert a twin log into one self-contained ``.rrd`` (data and blueprint).
 
     :param source: a ``.mcap`` file, a bag directory, or a list of these (split files).
     :param stations_m: station depths (m); default: those of the log's topics.

@@ -1,4 +1,5 @@
-"""Re-run a logged twin on its recorded commands and seed, and compare the bit state.
+"""
+Re-run a logged twin on its recorded commands and seed, and compare the bit state.
 
 The log is a bag directory or one of its MCAP files, read by :mod:`drill_twin.recording.reader`
 beside this module. Its
@@ -31,10 +32,12 @@ ENSEMBLE_TOPICS = {itf.ENSEMBLE_MEAN: 'ensemble_mean', itf.ENSEMBLE_LOWER: 'ense
 
 @dataclass(frozen=True)
 class Resimulation:
-    """compared: bit-state messages compared; max_difference: per field, the largest absolute
+    """
+    compared: bit-state messages compared; max_difference: per field, the largest absolute
     difference (SI units); ensemble_compared / ensemble_max_difference: the same over the
     ensemble mean and bound messages; recorded_version: drill_twin's version in the log;
-    commands: commands replayed."""
+    commands: commands replayed.
+    """
 
     compared: int
     max_difference: dict
@@ -65,7 +68,8 @@ PROGRESS_EVERY_STEPS = 1000
 
 
 def resimulate(path, progress=None) -> Resimulation:
-    """Re-run the twin of the log at ``path`` and compare its recorded bit states.
+    """
+    Re-run the twin of the log at ``path`` and compare its recorded bit states.
 
     :param progress: called as ``progress(done_s, total_s)`` (simulated seconds) every
         :data:`PROGRESS_EVERY_STEPS` steps and at the end, e.g. a

@@ -1,4 +1,5 @@
-"""The twin's topics as the recorder sees them: topic -> (message type, offered QoS).
+"""
+The twin's topics as the recorder sees them: topic -> (message type, offered QoS).
 
 Built from the names in :mod:`drill_twin.interface`; the vibration topics depend on the
 measurement stations (depths in m along the string).
@@ -40,7 +41,8 @@ class TopicSpec(NamedTuple):
 
 def twin_topics(stations_m: Iterable[float] = (), *, tf: bool = False
                 ) -> dict[str, TopicSpec]:
-    """List every topic the twin publishes or subscribes.
+    """
+    List every topic the twin publishes or subscribes.
 
     :param stations_m: depths (m) of the measurement stations (one IMU and one
         displacement topic each).

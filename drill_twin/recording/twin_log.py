@@ -1,4 +1,5 @@
-"""The twin's log: a rosbag2 bag of every published topic, the commands as applied, and the
+"""
+The twin's log: a rosbag2 bag of every published topic, the commands as applied, and the
 run description (:class:`~drill_twin.recording.log_metadata.TwinLogMetadata`).
 
 A failed write (full disk, file-size limit, ...) never raises into the twin: the log is closed
@@ -15,7 +16,8 @@ from drill_twin.recording.topics import twin_topics
 
 
 class TwinLog:
-    """An open log of a twin run: the bag directory ``path`` for the given stations.
+    """
+    An open log of a twin run: the bag directory ``path`` for the given stations.
 
     :param path: the bag directory (created; must not exist or be empty).
     :param stations_m: depths of the measurement stations (m).
@@ -73,8 +75,10 @@ class TwinLog:
             self.close()                  # the caller reports self.error
 
     def close(self) -> None:
-        """Complete the current split and ``metadata.yaml``; safe to call twice. A failure
-        here (e.g. the disk is full) is recorded in ``error`` if none is yet."""
+        """
+        Complete the current split and ``metadata.yaml``; safe to call twice. A failure
+        here (e.g. the disk is full) is recorded in ``error`` if none is yet.
+        """
         try:
             self._bag.finish()
         except OSError as error:

@@ -1,4 +1,5 @@
-"""What the twin node runs on, built outside it (no rclpy): the engine, its limits, the log.
+"""
+What the twin node runs on, built outside it (no rclpy): the engine, its limits, the log.
 
 The node (:mod:`drill_twin.ros.twin_node`) is handed a built
 :class:`~drill_twin.twin.engine.TwinEngine` and its
@@ -28,8 +29,10 @@ def command_limits(params: TwinParameters) -> CommandLimits:
 
 
 def build_engine(params: TwinParameters) -> TwinEngine:
-    """Load the model configuration the parameters name and build the twin's engine (the
-    ensemble's worker process starts here). Raises ConfigError on a bad configuration."""
+    """
+    Load the model configuration the parameters name and build the twin's engine (the
+    ensemble's worker process starts here). Raises ConfigError on a bad configuration.
+    """
     config = load_config(params.model_config or None, model_overrides(params))
     return TwinEngine(config,
                       EnsembleSettings(members=params.ensemble_members,
@@ -63,15 +66,19 @@ def new_log_path(log_dir: str | Path) -> Path:
 
 def open_log(path: Path, params: TwinParameters, stations_m, metadata: TwinLogMetadata, *,
              tf: bool = False) -> TwinLog:
-    """Open the run's log, the rosbag2 bag ``path`` (with /tf and /tf_static if ``tf``).
-    Raises OSError."""
+    """
+    Open the run's log, the rosbag2 bag ``path`` (with /tf and /tf_static if ``tf``).
+    Raises OSError.
+    """
     return TwinLog(path, stations_m, metadata,
                    split_duration_s=params.log_split_s, tf=tf)
 
 
 def contact_node_depths_m(config) -> list[float]:
-    """Depths x (m, down from the top) of the nodes, in the order of the contact-force array
-    on /drill_twin/contact/forces (top to bottom)."""
+    """
+    Depths x (m, down from the top) of the nodes, in the order of the contact-force array
+    on /drill_twin/contact/forces (top to bottom).
+    """
     from drill_twin.fem.mesh import build_mesh
 
     return [float(x) for x in build_mesh(config).node_x_m]

@@ -1,4 +1,5 @@
-"""Twin snapshots as standard ROS messages (units and conventions: drill_twin.interface).
+"""
+Twin snapshots as standard ROS messages (units and conventions: drill_twin.interface).
 
 :func:`tick_messages` gives everything one tick publishes; the node only sends them.
 ``TFMessage`` is None where tf2_msgs is not installed (the PyPI ROS wheels lack it; every ROS
@@ -70,9 +71,11 @@ def top_state(snapshot: TwinSnapshot, time_ns: int) -> JointState:
 
 
 def station_messages(snapshot: TwinSnapshot, stations_m, time_ns: int):
-    """(topic, message) of every station: Imu (accelerations m/s^2: axial, v, w; angular
+    """
+    (topic, message) of every station: Imu (accelerations m/s^2: axial, v, w; angular
     velocity rad/s: spin, theta_y', theta_z'; orientation not provided) and the displacement
-    (x axial, y = v, z = w, m)."""
+    (x axial, y = v, z = w, m).
+    """
     o = snapshot.observation
     out = []
     for k, x_m in enumerate(stations_m):
@@ -95,8 +98,10 @@ def station_messages(snapshot: TwinSnapshot, stations_m, time_ns: int):
 
 
 def contact_forces(snapshot: TwinSnapshot) -> Float64MultiArray:
-    """Radial wall force at every node, top to bottom (N); one dimension labelled
-    :data:`~drill_twin.interface.CONTACT_FORCES_LABEL` (node depths: docs/ROS-INTERFACE.md)."""
+    """
+    Radial wall force at every node, top to bottom (N); one dimension labelled
+    :data:`~drill_twin.interface.CONTACT_FORCES_LABEL` (node depths: docs/ROS-INTERFACE.md).
+    """
     forces = snapshot.observation.contact_force_n[0]
     message = Float64MultiArray(data=[float(f) for f in forces])
     message.layout.dim = [MultiArrayDimension(label=itf.CONTACT_FORCES_LABEL, size=forces.size,
@@ -107,8 +112,10 @@ def contact_forces(snapshot: TwinSnapshot) -> Float64MultiArray:
 
 def transform(parent: str, child: str, x_m: float, time_ns: int,
               rotation=(0.0, 0.0, 0.0, 1.0)) -> TransformStamped:
-    """``child`` at ``x_m`` along ``parent``'s x axis, turned by the quaternion ``rotation``
-    (x, y, z, w)."""
+    """
+    ``child`` at ``x_m`` along ``parent``'s x axis, turned by the quaternion ``rotation``
+    (x, y, z, w).
+    """
     message = TransformStamped(header=header(time_ns, parent), child_frame_id=child,
                                transform=Transform())
     message.transform.translation.x = float(x_m)
@@ -118,16 +125,20 @@ def transform(parent: str, child: str, x_m: float, time_ns: int,
 
 
 def static_transforms(stations_m, time_ns: int) -> list[TransformStamped]:
-    """Frames fixed for the run: the hole in the rig (x turned down) and each station on the
-    string, its distance below the top."""
+    """
+    Frames fixed for the run: the hole in the rig (x turned down) and each station on the
+    string, its distance below the top.
+    """
     return ([transform(itf.FRAME_RIG, itf.FRAME_HOLE, 0.0, time_ns, itf.HOLE_IN_RIG_QUATERNION)]
             + [transform(itf.FRAME_TOP, itf.station_frame(x_m), x_m, time_ns)
                for x_m in stations_m])
 
 
 def moving_transforms(snapshot: TwinSnapshot, time_ns: int) -> list[TransformStamped]:
-    """Frames that move with the string: the top at its axial displacement and the bit at
-    its depth, along the hole frame's x (m, down)."""
+    """
+    Frames that move with the string: the top at its axial displacement and the bit at
+    its depth, along the hole frame's x (m, down).
+    """
     top_m = float(snapshot.observation.hook_position_m[0])
     return [transform(itf.FRAME_HOLE, itf.FRAME_TOP, top_m, time_ns),
             transform(itf.FRAME_HOLE, itf.FRAME_BIT, snapshot.bit.depth_m, time_ns)]
@@ -149,7 +160,8 @@ def scalar(value: float) -> Float64:
 
 @dataclass(frozen=True, slots=True)
 class TickPlan:
-    """What a tick publishes besides its every-tick messages.
+    """
+    What a tick publishes besides its every-tick messages.
 
     kpis: the KPIs and hole depth are due; ensemble_stamp_ns: stamp (ns) of the ensemble's
     mean and bounds if they are due (their own time, a tick behind), else None; clock: /clock
@@ -163,8 +175,10 @@ class TickPlan:
 
 
 def state_messages(snapshot: TwinSnapshot, stations_m, time_ns: int):
-    """(topic, message) of every tick: the bit state and wrench, the top, the wall contacts,
-    the stations."""
+    """
+    (topic, message) of every tick: the bit state and wrench, the top, the wall contacts,
+    the stations.
+    """
     out = [(itf.BIT_STATE, bit_state(snapshot.bit, time_ns)),
            (itf.BIT_WRENCH, bit_wrench(snapshot.bit, time_ns)),
            (itf.TOP_STATE, top_state(snapshot, time_ns)),
@@ -173,8 +187,10 @@ def state_messages(snapshot: TwinSnapshot, stations_m, time_ns: int):
 
 
 def tick_messages(snapshot: TwinSnapshot, stations_m, time_ns: int, plan: TickPlan):
-    """(topic, message) of everything a tick publishes, in order: the states, then what
-    ``plan`` says is due (KPIs, ensemble, TF), the events, /clock."""
+    """
+    (topic, message) of everything a tick publishes, in order: the states, then what
+    ``plan`` says is due (KPIs, ensemble, TF), the events, /clock.
+    """
     out = state_messages(snapshot, stations_m, time_ns)
     if plan.kpis:
         out += kpi_messages(snapshot)
@@ -224,8 +240,10 @@ def events(events: tuple[TwinEvent, ...], time_ns: int) -> DiagnosticArray:
 
 
 def health_report(report: HealthReport, time_ns: int) -> DiagnosticArray:
-    """``drill_twin: twin health``: level and message of the report, its figures, and every
-    reason as ``reason_1``, ``reason_2``, ... (so that no reason is only on /rosout)."""
+    """
+    ``drill_twin: twin health``: level and message of the report, its figures, and every
+    reason as ``reason_1``, ``reason_2``, ... (so that no reason is only on /rosout).
+    """
     values = dict(report.values)
     values.update({f'reason_{k}': text for k, text in enumerate(report.reasons, start=1)})
     return DiagnosticArray(header=header(time_ns, ''),
@@ -239,9 +257,11 @@ def log(level: str, text: str, name: str, time_ns: int) -> Log:
 
 
 def publications(stations_m, *, ensemble: bool, clock: bool, tf: bool) -> dict:
-    """{topic: (message class, QosSpec)} of everything the twin publishes (but /rosout):
+    """
+    {topic: (message class, QosSpec)} of everything the twin publishes (but /rosout):
     the ensemble topics with an ensemble, /clock in fast mode, /tf and /tf_static where
-    tf2_msgs is installed."""
+    tf2_msgs is installed.
+    """
     state = itf.STATE_QOS
     topics = {itf.BIT_STATE: (JointState, state), itf.BIT_WRENCH: (WrenchStamped, state),
               itf.TOP_STATE: (JointState, state),

@@ -1,4 +1,5 @@
-"""How many model steps a tick of the twin takes: the pace of its clock (ROS-free).
+"""
+How many model steps a tick of the twin takes: the pace of its clock (ROS-free).
 
 Three paces:
 
@@ -24,7 +25,8 @@ that jumps is followed within a few ticks, the executor staying responsive)."""
 
 @dataclass(slots=True)
 class Pacer:
-    """Steps per tick for one pace (see the module docstring).
+    """
+    Steps per tick for one pace (see the module docstring).
 
     :param pace: 'fast', 'wall' or 'external'.
     :param dt_ns: model time step (ns).
@@ -57,8 +59,10 @@ class Pacer:
             self.epoch_ns = int(epoch_ns)
 
     def steps(self, now_ns: int | None, step_index: int) -> int:
-        """Model steps this tick takes; ``now_ns`` is the wall or external clock (unused when
-        fast)."""
+        """
+        Model steps this tick takes; ``now_ns`` is the wall or external clock (unused when
+        fast).
+        """
         if self.pace == 'fast':
             return self.substeps
         if self.epoch_ns is None or now_ns is None:
@@ -71,8 +75,10 @@ class Pacer:
         return int(min(max(self.behind(now_ns, step_index), 0), limit))
 
     def behind(self, now_ns: int | None, step_index: int) -> int:
-        """Whole model steps the twin is behind the clock it follows (0 when fast or before
-        the first tick; negative if that clock went back)."""
+        """
+        Whole model steps the twin is behind the clock it follows (0 when fast or before
+        the first tick; negative if that clock went back).
+        """
         if self.pace == 'fast' or self.origin_ns is None or now_ns is None:
             return 0
         return (now_ns - self.origin_ns) // self.dt_ns - step_index

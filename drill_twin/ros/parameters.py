@@ -1,5 +1,7 @@
-"""The twin node's parameters: names, defaults, ranges, descriptions, and which are safe to
-change while it runs (config/twin.yaml sets them under ``drill_twin: ros__parameters:``)."""
+"""
+The twin node's parameters: names, defaults, ranges, descriptions, and which are safe to
+change while it runs (config/twin.yaml sets them under ``drill_twin: ros__parameters:``).
+"""
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields, make_dataclass, replace
@@ -139,8 +141,10 @@ _VALUE_OPTIONS = {'-r', '--remap', '--log-level', '--log-config-file', '-e', '--
 
 
 class ParameterError(ValueError):
-    """A node parameter that the node would refuse; ``str()`` is one line naming where it
-    was given (``origin``), the parameter and the problem."""
+    """
+    A node parameter that the node would refuse; ``str()`` is one line naming where it
+    was given (``origin``), the parameter and the problem.
+    """
 
     def __init__(self, origin: str, name: str, message: str):
         where = ': '.join(part for part in (origin, name) if part)
@@ -151,8 +155,10 @@ class ParameterError(ValueError):
 
 
 def check_parameter(name: str, value, origin: str = ''):
-    """``value`` if the node accepts it for ``name`` (rclpy's rules: the default's type, no
-    integer for a floating-point parameter, the range, the choices); else ParameterError."""
+    """
+    ``value`` if the node accepts it for ``name`` (rclpy's rules: the default's type, no
+    integer for a floating-point parameter, the range, the choices); else ParameterError.
+    """
     if name in ROS_PARAMETERS:
         if not isinstance(value, bool):
             raise ParameterError(origin, name, f'expected true or false, got {value!r}')
@@ -204,7 +210,8 @@ def _check_range(spec: ParameterSpec, value, origin: str) -> None:
 
 def parameters_from_ros_arguments(ros_args: list[str],
                                   node_name: str = 'drill_twin') -> list[tuple[str, str, object]]:
-    """(origin, name, value) of every parameter of the node in ``ros_args`` (--params-file
+    """
+    (origin, name, value) of every parameter of the node in ``ros_args`` (--params-file
     files and -p/--param rules), in the order rcl applies them (the last one wins).
 
     Raises ParameterError for a file that cannot be read or a rule that cannot be parsed.
@@ -235,9 +242,11 @@ def parameters_from_ros_arguments(ros_args: list[str],
 
 
 def parameters_in_file(path: str, node_name: str = 'drill_twin') -> list[tuple[str, object]]:
-    """(name, value) of the node's parameters in a ROS 2 parameter file: every
+    """
+    (name, value) of the node's parameters in a ROS 2 parameter file: every
     ``ros__parameters`` mapping under the node's name, ``/**`` or ``/*`` (namespaces
-    allowed), nested mappings flattened to dotted names."""
+    allowed), nested mappings flattened to dotted names.
+    """
     from drill_twin.config import yaml_io
     import yaml
 
@@ -275,8 +284,10 @@ def parameters_in_file(path: str, node_name: str = 'drill_twin') -> list[tuple[s
 
 
 def validate_ros_arguments(ros_args: list[str], node_name: str = 'drill_twin') -> dict:
-    """The parameters the node will start with (defaults, then ``ros_args`` in order), each
-    checked by :func:`check_parameter`; raises ParameterError on the first bad one."""
+    """
+    The parameters the node will start with (defaults, then ``ros_args`` in order), each
+    checked by :func:`check_parameter`; raises ParameterError on the first bad one.
+    """
     values = {spec.name: (list(spec.default) if isinstance(spec.default, tuple)
                           else spec.default) for spec in PARAMETERS}
     for origin, name, value in parameters_from_ros_arguments(ros_args, node_name):
@@ -289,8 +300,10 @@ def validate_ros_arguments(ros_args: list[str], node_name: str = 'drill_twin') -
 
 
 def model_overrides(values) -> list[str]:
-    """The ``--set`` items the node applies to its model configuration: ``time_step_s``
-    (when > 0) first, then ``model_overrides`` (``values``: a dict or TwinParameters)."""
+    """
+    The ``--set`` items the node applies to its model configuration: ``time_step_s``
+    (when > 0) first, then ``model_overrides`` (``values``: a dict or TwinParameters).
+    """
     if not isinstance(values, dict):
         values = values.as_dict()
     overrides = [item for item in (values.get('model_overrides') or []) if item]

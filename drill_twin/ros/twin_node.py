@@ -1,4 +1,5 @@
-"""The twin as an rclpy node: a thin boundary around :class:`~drill_twin.twin.engine.TwinEngine`.
+"""
+The twin as an rclpy node: a thin boundary around :class:`~drill_twin.twin.engine.TwinEngine`.
 
 The engine is built outside the node (:func:`create_twin_node`, :mod:`drill_twin.ros.build`)
 and handed in with the :class:`~drill_twin.ros.parameters.TwinParameters` it was built from;
@@ -59,7 +60,8 @@ FROZEN_AFTER_S = 1.0
 
 
 class StopFuture(Future):
-    """The node's ``done`` future, registering each distinct done callback once.
+    """
+    The node's ``done`` future, registering each distinct done callback once.
 
     rclpy 7.1 (Jazzy) adds a fresh ``lambda x: self.wake()`` to the awaited future on every
     turn of ``Executor.spin_until_future_complete`` (ros2/rclpy#1374, #1702): a future awaited
@@ -113,7 +115,8 @@ def _descriptor(spec) -> ParameterDescriptor:
 
 
 class TwinNode(Node):
-    """The twin node (see the module docstring); ``done`` completes when it should stop.
+    """
+    The twin node (see the module docstring); ``done`` completes when it should stop.
 
     :param engine: the built engine; the node owns it from here (:meth:`close` closes it).
     :param params: the parameters ``engine`` was built with; declared as the node's ROS
@@ -218,8 +221,10 @@ class TwinNode(Node):
                                      clock=self.fast, tf=self.tf_enabled)
 
     def _open_log(self):
-        """Open the run's log (a rosbag2 bag in ``log_dir``); None if it cannot be created and
-        ``on_log_error`` is continue (LogDirectoryError if exit)."""
+        """
+        Open the run's log (a rosbag2 bag in ``log_dir``); None if it cannot be created and
+        ``on_log_error`` is continue (LogDirectoryError if exit).
+        """
         metadata = log_metadata(self.params, self.engine, epoch_ns=self.epoch_ns,
                                 substeps=self.substeps, fast=self.fast)
         path = new_log_path(self.params.log_dir)
@@ -234,8 +239,10 @@ class TwinNode(Node):
             return None
 
     def _on_log_failure(self, now: int) -> None:
-        """A write to the log failed (disk full, ...): the log is closed; say so as an ERROR
-        on /rosout and /diagnostics, then obey ``on_log_error`` (exit: stop, status 1)."""
+        """
+        A write to the log failed (disk full, ...): the log is closed; say so as an ERROR
+        on /rosout and /diagnostics, then obey ``on_log_error`` (exit: stop, status 1).
+        """
         error, self.log = self.log.error, None
         stop = self.params.on_log_error == 'exit'
         self._log_stopped = True
@@ -257,8 +264,10 @@ class TwinNode(Node):
     # -- time ----------------------------------------------------------------------------
     @property
     def epoch_ns(self) -> int:
-        """The twin's clock at step 0 (ns): the ROS time at start, 0 when fast, the first
-        /clock with use_sim_time (0 until it arrives)."""
+        """
+        The twin's clock at step 0 (ns): the ROS time at start, 0 when fast, the first
+        /clock with use_sim_time (0 until it arrives).
+        """
         return self.pacer.epoch_ns or 0
 
     def twin_time_ns(self) -> int:
@@ -280,8 +289,10 @@ class TwinNode(Node):
             self._on_clock_started()
 
     def _on_clock_started(self) -> None:
-        """The first /clock (use_sim_time): open the log, record the commands that came
-        before (they act from step 0), publish the static frames."""
+        """
+        The first /clock (use_sim_time): open the log, record the commands that came
+        before (they act from step 0), publish the static frames.
+        """
         if self.params.log_enabled:
             self.log = self._open_log()
         for topic, message in self._early_commands:
@@ -325,8 +336,10 @@ class TwinNode(Node):
             self.live_view.command(self.engine.time_s, **{key: message.data})
 
     def _count_dropped(self, topic: str, info) -> None:
-        """Commands lost on the way: gaps in the publisher's sequence numbers (counted while
-        one publisher sends the topic: the numbers of several publishers interleave)."""
+        """
+        Commands lost on the way: gaps in the publisher's sequence numbers (counted while
+        one publisher sends the topic: the numbers of several publishers interleave).
+        """
         sequence = info.get('publication_sequence_number') if info else None
         if sequence is None:
             return
@@ -371,8 +384,10 @@ class TwinNode(Node):
         return snapshot
 
     def _plan(self, snapshot) -> messages.TickPlan:
-        """What this tick publishes besides the states (rates: ``kpi_rate_hz`` for the KPIs and
-        /tf, ``ensemble_rate_hz`` for the ensemble)."""
+        """
+        What this tick publishes besides the states (rates: ``kpi_rate_hz`` for the KPIs and
+        /tf, ``ensemble_rate_hz`` for the ensemble).
+        """
         kpis = self._due(self.params.kpi_rate_hz)
         ensemble = snapshot.ensemble_mean is not None and self._due(self.params.ensemble_rate_hz)
         return messages.TickPlan(
@@ -404,8 +419,10 @@ class TwinNode(Node):
         self.done.set_result(False)
 
     def _steps_behind_wall_clock(self) -> int:
-        """Whole model steps the twin is behind the clock it follows (the ROS clock, or /clock
-        with use_sim_time) since its first tick; 0 when fast."""
+        """
+        Whole model steps the twin is behind the clock it follows (the ROS clock, or /clock
+        with use_sim_time) since its first tick; 0 when fast.
+        """
         return self.pacer.behind(self._clock_now_ns(), self.engine.step_index)
 
     def _due(self, rate_hz: float) -> bool:
@@ -474,8 +491,10 @@ class TwinNode(Node):
         return values
 
     def _note_clock(self, factor: float, lag_s: float) -> None:
-        """Note lag behind the clock the twin follows, a frozen twin clock, a missing or
-        reversed /clock."""
+        """
+        Note lag behind the clock the twin follows, a frozen twin clock, a missing or
+        reversed /clock.
+        """
         if self.sim_time and not self.pacer.started:
             self.monitor.note('warn', 'clock', 'waiting for the first /clock message '
                               '(use_sim_time)')
@@ -543,9 +562,11 @@ class TwinNode(Node):
 
 
 def create_twin_node(params: TwinParameters, node_class=None, **kwargs) -> TwinNode:
-    """Build the engine ``params`` describe and the node around it: a ``node_class`` (default
+    """
+    Build the engine ``params`` describe and the node around it: a ``node_class`` (default
     TwinNode, or a subclass), ``kwargs`` for ``rclpy.node.Node``. Raises ConfigError on a
-    bad model configuration."""
+    bad model configuration.
+    """
     engine = build_engine(params)
     try:
         return (node_class or TwinNode)(engine, params, **kwargs)
@@ -555,7 +576,8 @@ def create_twin_node(params: TwinParameters, node_class=None, **kwargs) -> TwinN
 
 
 def run(ros_args: list[str], view: str | None = None, console: bool | None = None) -> int:
-    """Run the twin until ``duration_s`` or a signal (SIGINT, SIGTERM); return the status.
+    """
+    Run the twin until ``duration_s`` or a signal (SIGINT, SIGTERM); return the status.
 
     ``view``: 'native' or 'web' streams the twin to a rerun viewer on 127.0.0.1 (the tabs of
     ``drill-twin view``); ``console``: a status line once a second and a summary at exit on
