@@ -200,8 +200,8 @@ def test_orbit_segments_and_wall():
     _, centres = rec.rows(f'{entity}/pipe', 'Ellipses2D:centers')
     _, sizes = rec.rows(f'{entity}/pipe', 'Ellipses2D:half_sizes')
     assert np.allclose(centres[1][0], [20.0, 10.0]) and np.allclose(sizes[0][0], [63.5, 63.5])
-    assert np.allclose(np.ravel(rec.rows(f'{entity}/radial')[1]), [10.0, math.hypot(20, 10),
-                                                                    30.0])
+    assert np.allclose(np.ravel(rec.rows(f'{entity}/radial')[1]),
+                       [10.0, math.hypot(20, 10), 30.0])
     assert np.allclose(np.ravel(rec.rows(f'{entity}/clearance')[1]), 86.5)
     layout.log_styles(rec, g)
     (wall,) = rec.static[f'{entity}/wall']

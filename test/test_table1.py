@@ -137,8 +137,8 @@ def test_modes_command_json():
 
 
 def test_modes_command_table_shows_the_paper_values():
-    result = subprocess.run([sys.executable, '-m', 'drill_twin.cli.main', 'modes', '--count', '20'],
-                            capture_output=True, text=True, cwd=REPO, timeout=120)
+    command = [sys.executable, '-m', 'drill_twin.cli.main', 'modes', '--count', '20']
+    result = subprocess.run(command, capture_output=True, text=True, cwd=REPO, timeout=120)
     assert result.returncode == 0, result.stderr
     lines = result.stdout.splitlines()
     rows = [line.split() for line in lines[3:]]
