@@ -78,8 +78,9 @@ _STATION_DISPLACEMENT = re.compile(r'^/drill_twin/vibration/x(\d+)(?:p(\d+))?m/d
 
 def station_from_topic(topic: str) -> float | None:
     """
-    Depth (m) of the station whose displacement topic this is (the inverse of
-    :func:`vibration_displacement_topic`), or None for any other topic.
+    Return the depth (m) of the station whose displacement topic this is.
+
+    The inverse of :func:`vibration_displacement_topic`; None for any other topic.
     """
     match = _STATION_DISPLACEMENT.match(topic)
     if match is None:

@@ -38,7 +38,7 @@ class TimedMessage(NamedTuple):
 
 
 def _snapshot(t: float, step: int, stations, state: dict) -> SimpleNamespace:
-    """A stand-in for TwinSnapshot with the fields :mod:`drill_twin.ros.messages` reads."""
+    """Make a stand-in for TwinSnapshot with the fields :mod:`drill_twin.ros.messages` reads."""
     top_speed, hook_load, depth0 = 10.0, 1.2e6, 1500.0      # rad/s, N, m
     phase = 2.0 * math.pi * 0.25 * t                        # stick-slip at 0.25 Hz
     bit_speed = max(0.0, top_speed * (1.0 + 1.1 * math.sin(phase)))

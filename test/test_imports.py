@@ -17,7 +17,7 @@ def _module_name(path: Path) -> str:
 
 
 def import_graph() -> dict[str, set[str]]:
-    """{module: drill_twin modules it imports} over every module of the package."""
+    """Map every module of the package to the drill_twin modules it imports."""
     modules = {_module_name(p): p for p in PACKAGE.rglob('*.py')}
     graph = {}
     for name, path in modules.items():
@@ -35,7 +35,7 @@ def import_graph() -> dict[str, set[str]]:
 
 
 def _cycle_through(graph, start: str) -> list[str] | None:
-    """A path start -> ... -> start, if there is one."""
+    """Find a path start -> ... -> start, if there is one."""
     stack, seen = [(start, [start])], set()
     while stack:
         node, path = stack.pop()

@@ -88,7 +88,7 @@ class Capture:
         pass
 
     def rows(self, entity, component='Scalars:scalars'):
-        """(times, values) of an entity over all its sends."""
+        """Return (times, values) of an entity over all its sends."""
         times = np.concatenate([t for t, _ in self.sent[entity]])
         values = [v for _, batch in self.sent[entity] for v in batch[component]]
         return times, values

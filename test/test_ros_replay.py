@@ -1,5 +1,8 @@
-"""Replay of twin logs: republishing with timing, re-simulation on the recorded commands, and
-the rerun view. Real rclpy over FastDDS, real MCAP files, the real rerun loader."""
+"""Replay of twin logs.
+
+Republishing with timing, re-simulation on the recorded commands, and the rerun view. Real rclpy
+over FastDDS, real MCAP files, the real rerun loader.
+"""
 from __future__ import annotations
 
 import os
@@ -16,7 +19,7 @@ DOMAIN_ID = random.Random(os.getpid()).randint(120, 200)   # apart from the node
 
 @pytest.fixture(scope='module')
 def ros(tmp_path_factory):
-    """An rclpy context isolated on its own domain, localhost only."""
+    """Give an rclpy context isolated on its own domain, localhost only."""
     with ros_environment(tmp_path_factory.mktemp('ros'), DOMAIN_ID):
         import rclpy
 
@@ -34,8 +37,10 @@ def _spin_until(executor, condition, timeout_s):
 
 @pytest.fixture(scope='module')
 def twin_log(ros, tmp_path_factory):
-    """A fast twin run with commands sent over DDS mid-run, its log split every 2 s of twin
-    time; returns the log (the bag directory)."""
+    """Run a fast twin with commands sent over DDS mid-run, its log split every 2 s.
+
+    Returns the log (the bag directory).
+    """
     from rclpy.executors import SingleThreadedExecutor
     from std_msgs.msg import Float64
     from threadpoolctl import threadpool_limits
@@ -112,7 +117,7 @@ def test_resimulate_the_first_split_alone(twin_log):
 
 
 def _altered_log(twin_log, path, config_change=None, seed_change=0):
-    """A one-file copy of ``twin_log`` whose recorded configuration or seed is altered."""
+    """Copy ``twin_log`` to one file whose recorded configuration or seed is altered."""
     import dataclasses
 
     import yaml

@@ -23,9 +23,12 @@ def _clock(time_ns: int):
 
 
 def test_use_sim_time_follows_an_external_clock(twin_factory):  # noqa: F811
-    """With use_sim_time the twin waits for /clock, starts its clock at the first message,
-    steps to each received time and never past it, stamps its messages with that clock, logs
-    it as the epoch, and publishes no /clock itself."""
+    """With use_sim_time the twin follows an external /clock.
+
+    It waits for /clock, starts its clock at the first message, steps to each received time
+    and never past it, stamps its messages with that clock, logs it as the epoch, and
+    publishes no /clock itself.
+    """
     from drill_twin.recording.qos import rclpy_qos_profile
     from drill_twin.recording.reader import read_metadata
 
@@ -72,8 +75,11 @@ def test_use_sim_time_follows_an_external_clock(twin_factory):  # noqa: F811
 
 
 def test_twin_frames_follow_rep_103_and_the_string():
-    """The hole frame is the rig frame turned so that x points down; the top and the bit move
-    along it with the top's displacement and the bit's depth; stations hang below the top."""
+    """The hole frame is the rig frame turned so that x points down.
+
+    The top and the bit move along it with the top's displacement and the bit's depth; stations
+    hang below the top.
+    """
     from drill_twin.ros import messages
 
     def rotate(q, v):
@@ -105,8 +111,11 @@ def test_twin_frames_follow_rep_103_and_the_string():
 
 
 def test_tf_is_published_where_tf2_msgs_is_installed(twin_factory):  # noqa: F811
-    """With tf2_msgs: /tf_static (transient local) and /tf reach a subscriber; without it
-    (the PyPI ROS wheels): no TF publisher, and the start line says why."""
+    """TF is published where tf2_msgs is installed.
+
+    With it, /tf_static (transient local) and /tf reach a subscriber; without it (the PyPI ROS
+    wheels), no TF publisher, and the start line says why.
+    """
     from drill_twin.ros import messages
 
     twin = twin_factory(ensemble_members=0)

@@ -93,7 +93,7 @@ class BagMetadata:
         return max(ends) - self.starting_time_ns if ends else 0
 
     def to_dict(self) -> dict:
-        """The ``rosbag2_bagfile_information`` mapping, keys in rosbag2's order."""
+        """Return the ``rosbag2_bagfile_information`` mapping, keys in rosbag2's order."""
         return {'rosbag2_bagfile_information': {
             'version': METADATA_VERSION,
             'storage_identifier': STORAGE_IDENTIFIER,
@@ -148,7 +148,7 @@ class BagMetadata:
 
 
 def read_bag_metadata(directory: str | os.PathLike) -> dict:
-    """The ``rosbag2_bagfile_information`` mapping of a bag (raises OSError, ValueError)."""
+    """Read a bag's ``rosbag2_bagfile_information`` mapping (OSError, ValueError)."""
     path = Path(directory) / METADATA_FILE
     try:
         content = yaml.safe_load(path.read_text(encoding='utf-8'))
@@ -163,7 +163,7 @@ def _split_order(path: Path) -> tuple:
 
 
 def listed_splits(directory: str | os.PathLike) -> list[Path]:
-    """The splits ``metadata.yaml`` lists (the complete ones), in order; [] without it."""
+    """List the splits ``metadata.yaml`` lists (the complete ones), in order; [] without it."""
     directory = Path(directory)
     if not (directory / METADATA_FILE).is_file():
         return []

@@ -174,8 +174,9 @@ class BagWriter:
 
     def _complete_split(self) -> None:
         """
-        Finish the current split and list it in ``metadata.yaml`` (again, if writing that
-        failed the last time).
+        Finish the current split and list it in ``metadata.yaml``.
+
+        Lists it again if writing ``metadata.yaml`` failed the last time.
         """
         if not self._split_listed:
             self._log.finish()
@@ -193,8 +194,10 @@ class BagWriter:
 
     def finish(self) -> None:
         """
-        Finish the current split and write the final ``metadata.yaml``; later calls do
-        nothing. Raises OSError if that fails (the current split is then not listed).
+        Finish the current split and write the final ``metadata.yaml``.
+
+        Later calls do nothing. Raises OSError if that fails (the current split is then not
+        listed).
         """
         with self._lock:
             if self._finished:

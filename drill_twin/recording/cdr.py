@@ -48,7 +48,7 @@ def _header(data: bytes) -> tuple[int, int]:
 
 
 def _doubles(data: bytes, position: int) -> tuple[tuple[float, ...], int]:
-    """A float64[] sequence: (values, position after it)."""
+    """Read a float64[] sequence: (values, position after it)."""
     position = _align(position, 4)
     (count,) = _U32.unpack_from(data, position)
     position = _align(position + 4, 8) if count else position + 4

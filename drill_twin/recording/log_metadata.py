@@ -85,7 +85,7 @@ class TwinLogMetadata:
         return int(round(self.time_step_s * 1e9))
 
     def to_record(self) -> dict[str, str]:
-        """The metadata record's string pairs (keys of the module docstring)."""
+        """Return the metadata record's string pairs (keys of the module docstring)."""
         record = {}
         for field in dataclasses.fields(self):
             value = getattr(self, field.name)

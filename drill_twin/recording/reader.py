@@ -80,7 +80,7 @@ def iter_records(path: str | os.PathLike, *, emit_chunks: bool = False,
 
 def log_files(path: str | os.PathLike) -> list[Path]:
     """
-    The MCAP files of a log (a bag directory or one file) in recording order.
+    List the MCAP files of a log (a bag directory or one file) in recording order.
 
     Raises FileNotFoundError (one line) if ``path`` does not exist, is a directory without
     MCAP files, or a split its ``metadata.yaml`` lists is missing; ValueError if that
@@ -101,8 +101,9 @@ def log_files(path: str | os.PathLike) -> list[Path]:
 def iter_raw(path: str | os.PathLike, topics: Iterable[str] | None = None, *,
              strict: bool = False) -> Iterator[tuple[Schema | None, Channel, Message]]:
     """
-    Yield (schema, channel, message) records of the readable part of a log in order
-    (every split of a bag in turn).
+    Yield (schema, channel, message) records of the readable part of a log in order.
+
+    Every split of a bag in turn.
     """
     for file in log_files(path):
         yield from _iter_raw_file(file, topics, strict)
@@ -206,8 +207,10 @@ def read_metadata(path: str | os.PathLike) -> dict[str, dict[str, str]]:
 
 def is_complete(path: str | os.PathLike) -> bool:
     """
-    Tell whether the log was finished: a file with a readable footer and summary, or a
-    bag whose ``metadata.yaml`` lists every one of its MCAP files, each complete.
+    Tell whether the log was finished.
+
+    A file with a readable footer and summary, or a bag whose ``metadata.yaml`` lists every one
+    of its MCAP files, each complete.
     """
     path = Path(path)
     if path.is_dir():

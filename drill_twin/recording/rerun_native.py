@@ -36,9 +36,10 @@ class LogNotFound(FileNotFoundError):
 
 def log_files(source) -> list[Path]:
     """
-    The MCAP files of a log, in order: a file, a bag directory, or a list of these
-    (:func:`drill_twin.recording.reader.log_files` for each); LogNotFound (one line) if an
-    item is not a log.
+    List the MCAP files of a log, in order.
+
+    A file, a bag directory, or a list of these (:func:`drill_twin.recording.reader.log_files`
+    for each); LogNotFound (one line) if an item is not a log.
     """
     from drill_twin.recording import reader
 
@@ -57,8 +58,9 @@ def log_files(source) -> list[Path]:
 
 def stations_from_topics(topic_names: Iterable[str]) -> list[float]:
     """
-    Station depths (m) named by the displacement topics, sorted (the inverse of
-    :func:`drill_twin.interface.station_name`).
+    Return the station depths (m) named by the displacement topics, sorted.
+
+    The inverse of :func:`drill_twin.interface.station_name`.
     """
     stations = (itf.station_from_topic(topic) for topic in topic_names)
     return sorted(x_m for x_m in stations if x_m is not None)
@@ -74,7 +76,7 @@ class RunColumns:
     texts: dict[str, list] = field(default_factory=lambda: defaultdict(list))
 
     def array(self, key: str, width: int) -> np.ndarray:
-        """Rows of a series as an array (n, width); (0, width) if none."""
+        """Return the rows of series ``key`` as numbers, shape (n, width); (0, width) if none."""
         rows = self.rows.get(key)
         return np.asarray(rows, dtype=float) if rows else np.zeros((0, width))
 
@@ -182,9 +184,10 @@ def _rosout(run: RunColumns, type_name: str, data: bytes, t_s: float) -> None:
 def geometry_of(run: RunColumns, stations_m: Sequence[float] | None = None
                 ) -> layout.StringGeometry:
     """
-    The string's geometry from the log's configuration (the built-in one if the log has
-    none or an unreadable one) and its stations (given, else those with a displacement
-    topic in the log).
+    Return the string's geometry from the log's configuration and its stations.
+
+    The built-in configuration if the log has none or an unreadable one; the stations given,
+    else those with a displacement topic in the log.
     """
     import yaml
 

@@ -53,9 +53,11 @@ def save_rrd(source, rrd_path: str | os.PathLike, stations_m: Sequence[float] | 
 
 def rerun_executable() -> str:
     """
-    Find the rerun viewer binary: the one the rerun-sdk wheel ships (``rerun_cli/rerun``;
-    the ``bin/rerun`` script only runs it as a child, which outlives a terminated script),
-    else next to this Python (a venv's ``bin/rerun``), else on PATH.
+    Find the rerun viewer binary.
+
+    The one the rerun-sdk wheel ships (``rerun_cli/rerun``; the ``bin/rerun`` script only runs
+    it as a child, which outlives a terminated script), else next to this Python (a venv's
+    ``bin/rerun``), else on PATH.
     """
     try:
         import rerun_cli
@@ -78,7 +80,7 @@ def viewer_command(rrd_path: str | os.PathLike | None, *, web: bool = False,
                    port: int = DEFAULT_GRPC_PORT, web_port: int = DEFAULT_WEB_PORT,
                    extra_args: Sequence[str] = ()) -> list[str]:
     """
-    The rerun command line for a viewer bound to 127.0.0.1.
+    Return the rerun command line for a viewer bound to 127.0.0.1.
 
     Native: the viewer window, its gRPC server on ``port``.  Web: rerun's web viewer over
     HTTP on ``web_port`` and the gRPC proxy on ``port``.  Without ``rrd_path`` the viewer

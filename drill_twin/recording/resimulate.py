@@ -33,6 +33,8 @@ ENSEMBLE_TOPICS = {itf.ENSEMBLE_MEAN: 'ensemble_mean', itf.ENSEMBLE_LOWER: 'ense
 @dataclass(frozen=True)
 class Resimulation:
     """
+    The outcome of a re-simulation.
+
     compared: bit-state messages compared; max_difference: per field, the largest absolute
     difference (SI units); ensemble_compared / ensemble_max_difference: the same over the
     ensemble mean and bound messages; recorded_version: drill_twin's version in the log;

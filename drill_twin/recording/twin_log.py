@@ -1,6 +1,8 @@
 """
-The twin's log: a rosbag2 bag of every published topic, the commands as applied, and the
-run description (:class:`~drill_twin.recording.log_metadata.TwinLogMetadata`).
+The twin's log.
+
+A rosbag2 bag of every published topic, the commands as applied, and the run description
+(:class:`~drill_twin.recording.log_metadata.TwinLogMetadata`).
 
 A failed write (full disk, file-size limit, ...) never raises into the twin: the log is closed
 as far as it can be (the last complete split stays listed in ``metadata.yaml``), ``error``
@@ -76,8 +78,10 @@ class TwinLog:
 
     def close(self) -> None:
         """
-        Complete the current split and ``metadata.yaml``; safe to call twice. A failure
-        here (e.g. the disk is full) is recorded in ``error`` if none is yet.
+        Complete the current split and ``metadata.yaml``.
+
+        Safe to call twice. A failure here (e.g. the disk is full) is recorded in ``error`` if
+        none is yet.
         """
         try:
             self._bag.finish()

@@ -22,7 +22,7 @@ from drill_twin.twin.engine import CommandLimits, EnsembleSettings, TwinEngine
 
 
 def command_limits(params: TwinParameters) -> CommandLimits:
-    """The commands the twin accepts (top-drive speed rad/s, hook load N)."""
+    """Return the commands the twin accepts (top-drive speed rad/s, hook load N)."""
     return CommandLimits(top_drive_speed_max_rad_per_s=params.top_drive_speed_max_rad_per_s,
                          hook_load_min_n=params.hook_load_min_n,
                          hook_load_max_n=params.hook_load_max_n)
@@ -30,8 +30,9 @@ def command_limits(params: TwinParameters) -> CommandLimits:
 
 def build_engine(params: TwinParameters) -> TwinEngine:
     """
-    Load the model configuration the parameters name and build the twin's engine (the
-    ensemble's worker process starts here). Raises ConfigError on a bad configuration.
+    Load the model configuration the parameters name and build the twin's engine.
+
+    The ensemble's worker process starts here. Raises ConfigError on a bad configuration.
     """
     config = load_config(params.model_config or None, model_overrides(params))
     return TwinEngine(config,
@@ -43,7 +44,7 @@ def build_engine(params: TwinParameters) -> TwinEngine:
 
 def log_metadata(params: TwinParameters, engine: TwinEngine, *, epoch_ns: int, substeps: int,
                  fast: bool) -> TwinLogMetadata:
-    """The run description a log carries (what ``replay --resimulate`` needs)."""
+    """Describe the run as its log carries it (what ``replay --resimulate`` needs)."""
     return TwinLogMetadata(
         config_yaml=yaml.safe_dump(config_to_dict(engine.config), sort_keys=False),
         seed=params.seed, clock_epoch_ns=epoch_ns, time_step_s=engine.dt,
@@ -54,7 +55,7 @@ def log_metadata(params: TwinParameters, engine: TwinEngine, *, epoch_ns: int, s
 
 
 def new_log_path(log_dir: str | Path) -> Path:
-    """A bag directory not yet used: ``log_dir/drill_twin_<UTC time>[_k]``."""
+    """Return a bag directory not yet used: ``log_dir/drill_twin_<UTC time>[_k]``."""
     stamp = datetime.datetime.now(datetime.timezone.utc).strftime('%Y%m%dT%H%M%SZ')
     path = Path(log_dir) / f'drill_twin_{stamp}'
     counter = 1
@@ -68,6 +69,7 @@ def open_log(path: Path, params: TwinParameters, stations_m, metadata: TwinLogMe
              tf: bool = False) -> TwinLog:
     """
     Open the run's log, the rosbag2 bag ``path`` (with /tf and /tf_static if ``tf``).
+
     Raises OSError.
     """
     return TwinLog(path, stations_m, metadata,
@@ -76,8 +78,9 @@ def open_log(path: Path, params: TwinParameters, stations_m, metadata: TwinLogMe
 
 def contact_node_depths_m(config) -> list[float]:
     """
-    Depths x (m, down from the top) of the nodes, in the order of the contact-force array
-    on /drill_twin/contact/forces (top to bottom).
+    Return the depths x of the nodes (m, down from the top).
+
+    In the order of the contact-force array on /drill_twin/contact/forces (top to bottom).
     """
     from drill_twin.fem.mesh import build_mesh
 
@@ -85,7 +88,7 @@ def contact_node_depths_m(config) -> list[float]:
 
 
 def contact_nodes_markdown(config) -> str:
-    """The node-depth line of docs/ROS-INTERFACE.md for ``config``."""
+    """Return the node-depth line of docs/ROS-INTERFACE.md for ``config``."""
     depths = contact_node_depths_m(config)
     return (f'{len(depths)} nodes, x (m) = '
             + ', '.join(f'{x:.2f}'.rstrip('0').rstrip('.') for x in depths))

@@ -72,9 +72,10 @@ def top_state(snapshot: TwinSnapshot, time_ns: int) -> JointState:
 
 def station_messages(snapshot: TwinSnapshot, stations_m, time_ns: int):
     """
-    (topic, message) of every station: Imu (accelerations m/s^2: axial, v, w; angular
-    velocity rad/s: spin, theta_y', theta_z'; orientation not provided) and the displacement
-    (x axial, y = v, z = w, m).
+    (topic, message) of every station.
+
+    Imu (accelerations m/s^2: axial, v, w; angular velocity rad/s: spin, theta_y', theta_z';
+    orientation not provided) and the displacement (x axial, y = v, z = w, m).
     """
     o = snapshot.observation
     out = []
@@ -99,8 +100,10 @@ def station_messages(snapshot: TwinSnapshot, stations_m, time_ns: int):
 
 def contact_forces(snapshot: TwinSnapshot) -> Float64MultiArray:
     """
-    Radial wall force at every node, top to bottom (N); one dimension labelled
-    :data:`~drill_twin.interface.CONTACT_FORCES_LABEL` (node depths: docs/ROS-INTERFACE.md).
+    Radial wall force at every node, top to bottom (N).
+
+    One dimension labelled :data:`~drill_twin.interface.CONTACT_FORCES_LABEL` (node depths:
+    docs/ROS-INTERFACE.md).
     """
     forces = snapshot.observation.contact_force_n[0]
     message = Float64MultiArray(data=[float(f) for f in forces])
@@ -113,8 +116,9 @@ def contact_forces(snapshot: TwinSnapshot) -> Float64MultiArray:
 def transform(parent: str, child: str, x_m: float, time_ns: int,
               rotation=(0.0, 0.0, 0.0, 1.0)) -> TransformStamped:
     """
-    ``child`` at ``x_m`` along ``parent``'s x axis, turned by the quaternion ``rotation``
-    (x, y, z, w).
+    Place ``child`` at ``x_m`` along ``parent``'s x axis.
+
+    Turned by the quaternion ``rotation`` (x, y, z, w).
     """
     message = TransformStamped(header=header(time_ns, parent), child_frame_id=child,
                                transform=Transform())
@@ -126,8 +130,10 @@ def transform(parent: str, child: str, x_m: float, time_ns: int,
 
 def static_transforms(stations_m, time_ns: int) -> list[TransformStamped]:
     """
-    Frames fixed for the run: the hole in the rig (x turned down) and each station on the
-    string, its distance below the top.
+    Frames fixed for the run.
+
+    The hole in the rig (x turned down) and each station on the string, its distance below the
+    top.
     """
     return ([transform(itf.FRAME_RIG, itf.FRAME_HOLE, 0.0, time_ns, itf.HOLE_IN_RIG_QUATERNION)]
             + [transform(itf.FRAME_TOP, itf.station_frame(x_m), x_m, time_ns)
@@ -136,8 +142,10 @@ def static_transforms(stations_m, time_ns: int) -> list[TransformStamped]:
 
 def moving_transforms(snapshot: TwinSnapshot, time_ns: int) -> list[TransformStamped]:
     """
-    Frames that move with the string: the top at its axial displacement and the bit at
-    its depth, along the hole frame's x (m, down).
+    Frames that move with the string.
+
+    The top at its axial displacement and the bit at its depth, along the hole frame's x (m,
+    down).
     """
     top_m = float(snapshot.observation.hook_position_m[0])
     return [transform(itf.FRAME_HOLE, itf.FRAME_TOP, top_m, time_ns),
@@ -145,14 +153,14 @@ def moving_transforms(snapshot: TwinSnapshot, time_ns: int) -> list[TransformSta
 
 
 def tf(transforms) -> 'TFMessage':
-    """A tf2_msgs/TFMessage of ``transforms`` (requires tf2_msgs)."""
+    """Wrap ``transforms`` in a tf2_msgs/TFMessage (requires tf2_msgs)."""
     if TFMessage is None:
         raise RuntimeError('tf2_msgs is not installed')
     return TFMessage(transforms=list(transforms))
 
 
 def scalar(value: float) -> Float64:
-    """A KPI; only finite values are published (the node skips a KPI it cannot compute)."""
+    """Make a KPI message; only finite values (the node skips a KPI it cannot compute)."""
     if not math.isfinite(value):
         raise ValueError(f'a KPI must be finite, got {value}')
     return Float64(data=float(value))
@@ -176,8 +184,9 @@ class TickPlan:
 
 def state_messages(snapshot: TwinSnapshot, stations_m, time_ns: int):
     """
-    (topic, message) of every tick: the bit state and wrench, the top, the wall contacts,
-    the stations.
+    (topic, message) of every tick.
+
+    The bit state and wrench, the top, the wall contacts, the stations.
     """
     out = [(itf.BIT_STATE, bit_state(snapshot.bit, time_ns)),
            (itf.BIT_WRENCH, bit_wrench(snapshot.bit, time_ns)),
@@ -188,8 +197,9 @@ def state_messages(snapshot: TwinSnapshot, stations_m, time_ns: int):
 
 def tick_messages(snapshot: TwinSnapshot, stations_m, time_ns: int, plan: TickPlan):
     """
-    (topic, message) of everything a tick publishes, in order: the states, then what
-    ``plan`` says is due (KPIs, ensemble, TF), the events, /clock.
+    (topic, message) of everything a tick publishes, in order.
+
+    The states, then what ``plan`` says is due (KPIs, ensemble, TF), the events, /clock.
     """
     out = state_messages(snapshot, stations_m, time_ns)
     if plan.kpis:
@@ -241,8 +251,10 @@ def events(events: tuple[TwinEvent, ...], time_ns: int) -> DiagnosticArray:
 
 def health_report(report: HealthReport, time_ns: int) -> DiagnosticArray:
     """
-    ``drill_twin: twin health``: level and message of the report, its figures, and every
-    reason as ``reason_1``, ``reason_2``, ... (so that no reason is only on /rosout).
+    Return the health report as ``drill_twin: twin health``.
+
+    Level and message of the report, its figures, and every reason as ``reason_1``,
+    ``reason_2``, ... (so that no reason is only on /rosout).
     """
     values = dict(report.values)
     values.update({f'reason_{k}': text for k, text in enumerate(report.reasons, start=1)})
@@ -251,15 +263,16 @@ def health_report(report: HealthReport, time_ns: int) -> DiagnosticArray:
 
 
 def log(level: str, text: str, name: str, time_ns: int) -> Log:
-    """A /rosout record of the twin's own log line (for the MCAP log)."""
+    """Make a /rosout record of the twin's own log line (for the MCAP log)."""
     return Log(stamp=stamp(time_ns), level=LOG_LEVELS[level], name=name, msg=text,
                file='', function='', line=0)
 
 
 def publications(stations_m, *, ensemble: bool, clock: bool, tf: bool) -> dict:
     """
-    {topic: (message class, QosSpec)} of everything the twin publishes (but /rosout):
-    the ensemble topics with an ensemble, /clock in fast mode, /tf and /tf_static where
+    Map every topic the twin publishes (but /rosout) to its (message class, QosSpec).
+
+    The ensemble topics with an ensemble, /clock in fast mode, /tf and /tf_static where
     tf2_msgs is installed.
     """
     state = itf.STATE_QOS

@@ -54,14 +54,15 @@ class Pacer:
         return self.epoch_ns is not None
 
     def start(self, epoch_ns: int) -> None:
-        """The first external clock message: the twin's clock begins there."""
+        """Begin the twin's clock at the first external clock message."""
         if self.epoch_ns is None:
             self.epoch_ns = int(epoch_ns)
 
     def steps(self, now_ns: int | None, step_index: int) -> int:
         """
-        Model steps this tick takes; ``now_ns`` is the wall or external clock (unused when
-        fast).
+        Model steps this tick takes.
+
+        ``now_ns`` is the wall or external clock (unused when fast).
         """
         if self.pace == 'fast':
             return self.substeps
@@ -76,8 +77,9 @@ class Pacer:
 
     def behind(self, now_ns: int | None, step_index: int) -> int:
         """
-        Whole model steps the twin is behind the clock it follows (0 when fast or before
-        the first tick; negative if that clock went back).
+        Return the whole model steps the twin is behind the clock it follows.
+
+        0 when fast or before the first tick; negative if that clock went back.
         """
         if self.pace == 'fast' or self.origin_ns is None or now_ns is None:
             return 0

@@ -1,6 +1,8 @@
 """
-The twin node's parameters: names, defaults, ranges, descriptions, and which are safe to
-change while it runs (config/twin.yaml sets them under ``drill_twin: ros__parameters:``).
+The twin node's parameters.
+
+Names, defaults, ranges, descriptions, and which are safe to change while it runs
+(config/twin.yaml sets them under ``drill_twin: ros__parameters:``).
 """
 from __future__ import annotations
 
@@ -74,7 +76,7 @@ BY_NAME = {p.name: p for p in PARAMETERS}
 
 
 def _with_values(self, **changes):
-    """A copy with ``changes`` (the node replaces its parameters on a change)."""
+    """Return a copy with ``changes`` (the node replaces its parameters on a change)."""
     return replace(self, **changes)
 
 
@@ -109,7 +111,7 @@ def unsafe_change_reason(name: str) -> str:
 
 
 def markdown_table() -> str:
-    """The parameter table of docs/ROS-INTERFACE.md."""
+    """Return the parameter table of docs/ROS-INTERFACE.md."""
     def show(value):
         if isinstance(value, tuple):
             return '(empty list)' if not value else ', '.join(map(str, value))
@@ -142,8 +144,9 @@ _VALUE_OPTIONS = {'-r', '--remap', '--log-level', '--log-config-file', '-e', '--
 
 class ParameterError(ValueError):
     """
-    A node parameter that the node would refuse; ``str()`` is one line naming where it
-    was given (``origin``), the parameter and the problem.
+    A node parameter that the node would refuse.
+
+    ``str()`` is one line naming where it was given (``origin``), the parameter and the problem.
     """
 
     def __init__(self, origin: str, name: str, message: str):
@@ -156,8 +159,10 @@ class ParameterError(ValueError):
 
 def check_parameter(name: str, value, origin: str = ''):
     """
-    ``value`` if the node accepts it for ``name`` (rclpy's rules: the default's type, no
-    integer for a floating-point parameter, the range, the choices); else ParameterError.
+    Return ``value`` if the node accepts it for ``name``, else raise ParameterError.
+
+    rclpy's rules: the default's type, no integer for a floating-point parameter, the range,
+    the choices.
     """
     if name in ROS_PARAMETERS:
         if not isinstance(value, bool):
@@ -211,8 +216,10 @@ def _check_range(spec: ParameterSpec, value, origin: str) -> None:
 def parameters_from_ros_arguments(ros_args: list[str],
                                   node_name: str = 'drill_twin') -> list[tuple[str, str, object]]:
     """
-    (origin, name, value) of every parameter of the node in ``ros_args`` (--params-file
-    files and -p/--param rules), in the order rcl applies them (the last one wins).
+    List (origin, name, value) of every parameter of the node in ``ros_args``.
+
+    From --params-file files and -p/--param rules, in the order rcl applies them (the last
+    one wins).
 
     Raises ParameterError for a file that cannot be read or a rule that cannot be parsed.
     """
@@ -243,8 +250,9 @@ def parameters_from_ros_arguments(ros_args: list[str],
 
 def parameters_in_file(path: str, node_name: str = 'drill_twin') -> list[tuple[str, object]]:
     """
-    (name, value) of the node's parameters in a ROS 2 parameter file: every
-    ``ros__parameters`` mapping under the node's name, ``/**`` or ``/*`` (namespaces
+    (name, value) of the node's parameters in a ROS 2 parameter file.
+
+    Every ``ros__parameters`` mapping under the node's name, ``/**`` or ``/*`` (namespaces
     allowed), nested mappings flattened to dotted names.
     """
     from drill_twin.config import yaml_io
@@ -285,8 +293,9 @@ def parameters_in_file(path: str, node_name: str = 'drill_twin') -> list[tuple[s
 
 def validate_ros_arguments(ros_args: list[str], node_name: str = 'drill_twin') -> dict:
     """
-    The parameters the node will start with (defaults, then ``ros_args`` in order), each
-    checked by :func:`check_parameter`; raises ParameterError on the first bad one.
+    Return the parameters the node will start with (defaults, then ``ros_args`` in order).
+
+    Each is checked by :func:`check_parameter`; raises ParameterError on the first bad one.
     """
     values = {spec.name: (list(spec.default) if isinstance(spec.default, tuple)
                           else spec.default) for spec in PARAMETERS}
@@ -301,8 +310,10 @@ def validate_ros_arguments(ros_args: list[str], node_name: str = 'drill_twin') -
 
 def model_overrides(values) -> list[str]:
     """
-    The ``--set`` items the node applies to its model configuration: ``time_step_s``
-    (when > 0) first, then ``model_overrides`` (``values``: a dict or TwinParameters).
+    Return the ``--set`` items the node applies to its model configuration.
+
+    ``time_step_s`` (when > 0) first, then ``model_overrides`` (``values``: a dict or
+    TwinParameters).
     """
     if not isinstance(values, dict):
         values = values.as_dict()

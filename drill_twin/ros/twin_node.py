@@ -95,7 +95,7 @@ _PARAMETER_TYPES = {bool: Parameter.Type.BOOL, int: Parameter.Type.INTEGER,
 
 
 def _parameter(spec, value) -> Parameter:
-    """The ROS parameter ``spec.name`` holding ``value``, typed as its default."""
+    """Return the ROS parameter ``spec.name`` holding ``value``, typed as its default."""
     kind = _PARAMETER_TYPES[type(spec.default)]
     return Parameter(spec.name, kind, list(value) if isinstance(value, tuple) else value)
 
@@ -222,8 +222,10 @@ class TwinNode(Node):
 
     def _open_log(self):
         """
-        Open the run's log (a rosbag2 bag in ``log_dir``); None if it cannot be created and
-        ``on_log_error`` is continue (LogDirectoryError if exit).
+        Open the run's log (a rosbag2 bag in ``log_dir``).
+
+        None if it cannot be created and ``on_log_error`` is continue (LogDirectoryError if
+        exit).
         """
         metadata = log_metadata(self.params, self.engine, epoch_ns=self.epoch_ns,
                                 substeps=self.substeps, fast=self.fast)
@@ -240,8 +242,10 @@ class TwinNode(Node):
 
     def _on_log_failure(self, now: int) -> None:
         """
-        A write to the log failed (disk full, ...): the log is closed; say so as an ERROR
-        on /rosout and /diagnostics, then obey ``on_log_error`` (exit: stop, status 1).
+        Handle a failed write to the log (disk full, ...).
+
+        The log is closed; say so as an ERROR on /rosout and /diagnostics, then obey
+        ``on_log_error`` (exit: stop, status 1).
         """
         error, self.log = self.log.error, None
         stop = self.params.on_log_error == 'exit'
@@ -265,17 +269,19 @@ class TwinNode(Node):
     @property
     def epoch_ns(self) -> int:
         """
-        The twin's clock at step 0 (ns): the ROS time at start, 0 when fast, the first
-        /clock with use_sim_time (0 until it arrives).
+        The twin's clock at step 0 (ns).
+
+        The ROS time at start, 0 when fast, the first /clock with use_sim_time (0 until it
+        arrives).
         """
         return self.pacer.epoch_ns or 0
 
     def twin_time_ns(self) -> int:
-        """The twin's clock (ns): the epoch plus the simulated time."""
+        """Return the twin's clock (ns): the epoch plus the simulated time."""
         return self.epoch_ns + self.engine.step_index * self.dt_ns
 
     def _clock_now_ns(self) -> int | None:
-        """The clock the twin follows (ns): the ROS clock, the latest /clock, None when fast."""
+        """Return the clock the twin follows (ns): ROS clock, latest /clock, None when fast."""
         if self.fast:
             return None
         if self.sim_time:
@@ -290,8 +296,10 @@ class TwinNode(Node):
 
     def _on_clock_started(self) -> None:
         """
-        The first /clock (use_sim_time): open the log, record the commands that came
-        before (they act from step 0), publish the static frames.
+        Start the twin's clock at the first /clock (use_sim_time).
+
+        Open the log, record the commands that came before (they act from step 0), publish the
+        static frames.
         """
         if self.params.log_enabled:
             self.log = self._open_log()
@@ -337,8 +345,10 @@ class TwinNode(Node):
 
     def _count_dropped(self, topic: str, info) -> None:
         """
-        Commands lost on the way: gaps in the publisher's sequence numbers (counted while
-        one publisher sends the topic: the numbers of several publishers interleave).
+        Commands lost on the way.
+
+        Gaps in the publisher's sequence numbers (counted while one publisher sends the topic:
+        the numbers of several publishers interleave).
         """
         sequence = info.get('publication_sequence_number') if info else None
         if sequence is None:
@@ -385,8 +395,9 @@ class TwinNode(Node):
 
     def _plan(self, snapshot) -> messages.TickPlan:
         """
-        What this tick publishes besides the states (rates: ``kpi_rate_hz`` for the KPIs and
-        /tf, ``ensemble_rate_hz`` for the ensemble).
+        Plan what this tick publishes besides the states.
+
+        Rates: ``kpi_rate_hz`` for the KPIs and /tf, ``ensemble_rate_hz`` for the ensemble.
         """
         kpis = self._due(self.params.kpi_rate_hz)
         ensemble = snapshot.ensemble_mean is not None and self._due(self.params.ensemble_rate_hz)
@@ -411,7 +422,7 @@ class TwinNode(Node):
             self.done.set_result(True)
 
     def _stalled(self, error: TwinStalled) -> None:
-        """The model cannot go on: report it (rosout and an ERROR health status), stop."""
+        """Report that the model cannot go on (rosout, an ERROR health status) and stop."""
         self.monitor.note('error', 'stalled', str(error))
         self._report('error', f'{error}; stopping')
         self._publish_health()
@@ -420,8 +431,10 @@ class TwinNode(Node):
 
     def _steps_behind_wall_clock(self) -> int:
         """
-        Whole model steps the twin is behind the clock it follows (the ROS clock, or /clock
-        with use_sim_time) since its first tick; 0 when fast.
+        Return the whole model steps the twin is behind the clock it follows.
+
+        That clock is the ROS clock, or /clock with use_sim_time, counted since the first
+        tick; 0 when fast.
         """
         return self.pacer.behind(self._clock_now_ns(), self.engine.step_index)
 
@@ -447,7 +460,7 @@ class TwinNode(Node):
         self._publish_health()
 
     def _publish_health(self) -> None:
-        """The health report of the period since the last one, on /diagnostics."""
+        """Publish the health report of the period since the last one on /diagnostics."""
         values = self._health_values()
         counters = dict(self._latest_health, commands_dropped=self.commands_dropped)
         report = self.monitor.report(counters, values)
@@ -457,7 +470,7 @@ class TwinNode(Node):
             self.log.flush()
 
     def _health_values(self) -> dict:
-        """The figures of a health report; notes lag and a missing log in the monitor."""
+        """Return the figures of a health report; note lag and a missing log in the monitor."""
         wall, simulated = time.perf_counter(), self.engine.time_s
         previous_wall, previous_simulated = self._health_mark
         self._health_mark = (wall, simulated)
@@ -492,8 +505,9 @@ class TwinNode(Node):
 
     def _note_clock(self, factor: float, lag_s: float) -> None:
         """
-        Note lag behind the clock the twin follows, a frozen twin clock, a missing or
-        reversed /clock.
+        Note lag behind the clock the twin follows, and a frozen or missing clock.
+
+        Also a /clock that went back (use_sim_time).
         """
         if self.sim_time and not self.pacer.started:
             self.monitor.note('warn', 'clock', 'waiting for the first /clock message '
@@ -513,7 +527,7 @@ class TwinNode(Node):
                               f'{still:.1f} s')
 
     def _report(self, level: str, text: str) -> None:
-        """A log line to rosout, and to the MCAP log's /rosout."""
+        """Write a log line to rosout, and to the MCAP log's /rosout."""
         # One call site per severity: rclpy keys a logger's call context by the calling line
         # and raises ValueError if the severity changes between calls from the same line.
         logger = self.get_logger()
@@ -563,9 +577,10 @@ class TwinNode(Node):
 
 def create_twin_node(params: TwinParameters, node_class=None, **kwargs) -> TwinNode:
     """
-    Build the engine ``params`` describe and the node around it: a ``node_class`` (default
-    TwinNode, or a subclass), ``kwargs`` for ``rclpy.node.Node``. Raises ConfigError on a
-    bad model configuration.
+    Build the engine ``params`` describe and the node around it.
+
+    A ``node_class`` (default TwinNode, or a subclass), ``kwargs`` for ``rclpy.node.Node``.
+    Raises ConfigError on a bad model configuration.
     """
     engine = build_engine(params)
     try:
