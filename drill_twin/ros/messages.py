@@ -182,6 +182,21 @@ class TickPlan:
     tf: bool = False
 
 
+def every_tick_topic(topic: str) -> bool:
+    """
+    Tell whether ``topic`` is one of the states every tick publishes.
+
+    Those of :func:`state_messages` and the moving TF frames: the log thins them to the
+    node's ``log_state_rate_hz``.
+    """
+    return (topic in (itf.BIT_STATE, itf.BIT_WRENCH, itf.TOP_STATE, itf.CONTACT_FORCES, itf.TF)
+            or topic.startswith(VIBRATION_PREFIX))
+
+
+VIBRATION_PREFIX = '/drill_twin/vibration/'
+"""The stations' topics (interface.vibration_*_topic) start with it."""
+
+
 def state_messages(snapshot: TwinSnapshot, stations_m, time_ns: int):
     """
     (topic, message) of every tick.

@@ -27,7 +27,7 @@ PARAMETERS = (
                   'config/ritto2009.yaml)', safe=False),
     ParameterSpec('model_overrides', (), 'key=value overrides of the model configuration, '
                   'e.g. sections.drill_pipe.elements=40', safe=False),
-    ParameterSpec('ensemble_members', 16, 'realizations of the random bit-rock law stepped '
+    ParameterSpec('ensemble_members', 64, 'realizations of the random bit-rock law stepped '
                   'with the mean model', safe=False, low=0, high=256),
     ParameterSpec('ensemble_dispersion', 0.01, 'dispersion delta of the ensemble\'s germs',
                   safe=False, low=0.0, high=0.65),
@@ -36,11 +36,11 @@ PARAMETERS = (
                   safe=False),
     ParameterSpec('seed', 0, 'seed of the ensemble (member j draws from the stream (seed, j))',
                   safe=False, low=0, high=2 ** 31 - 1),
-    ParameterSpec('time_step_s', 0.01, 'model time step of the twin (s); a tick takes the '
-                  'steps whose time the wall clock has reached (a step longer than a tick '
-                  'waits for it). 10 ms costs half the configuration\'s 5 ms '
-                  '(offline runs) for 0.2 % error on the stick-slip swing; 0: the '
-                  'configuration\'s', safe=False, low=0.0, high=0.1),
+    ParameterSpec('time_step_s', 0.005, 'model time step of the twin (s), the offline runs\' '
+                  '5 ms; a tick takes the steps whose time the wall clock has reached (a step '
+                  'longer than a tick waits for it); 10 ms halves the cost for 0.2 % error on '
+                  'the stick-slip swing; 0: the configuration\'s', safe=False, low=0.0,
+                  high=0.1),
     ParameterSpec('rate_hz', 100.0, 'tick rate of the wall-clock timer; a tick advances the '
                   'twin to the wall clock in model steps (never past it)', safe=False, low=1.0,
                   high=1000.0),
@@ -53,6 +53,10 @@ PARAMETERS = (
     ParameterSpec('log_split_s', 300.0, 'log time (s) an MCAP split of the log holds at most '
                   '(rosbag2\'s max_bag_duration): only the split being written can be cut by '
                   'a crash or a full disk', safe=False, low=1.0, high=86400.0),
+    ParameterSpec('log_state_rate_hz', 50.0, 'largest rate (per second of twin time) at '
+                  'which the every-tick states (bit, top, wall contacts, stations, TF) are '
+                  'logged; they are published every tick, everything else is logged as '
+                  'published', safe=True, low=1.0, high=1000.0),
     ParameterSpec('log_enabled', True, 'record every topic and command to an MCAP log',
                   safe=False),
     ParameterSpec('on_log_error', 'continue', 'if the log cannot be written: continue (run '

@@ -177,6 +177,7 @@ class TwinNode(Node):
         dt = self.engine.dt
         self.substeps = max(1, round(1.0 / (self.params.rate_hz * dt)))
         self.tick_s = self.substeps * dt
+        self._next_state_log_ns = 0                # twin time of the next logged states
         self.dt_ns = int(round(dt * 1e9))
         self.stations_m = [s.x_m for s in self.engine.simulator.system.stations]
         self.ticks = 0
@@ -368,10 +369,20 @@ class TwinNode(Node):
         if snapshot is None:                # not due yet, or the model stalled (reported)
             return
         now = self.twin_time_ns()
+        log_states = self._log_states_due(now)
         for topic, message in messages.tick_messages(snapshot, self.stations_m, now,
                                                      self._plan(snapshot)):
-            self._publish(topic, message, now)
+            self._publish(topic, message, now,
+                          log=log_states or not messages.every_tick_topic(topic))
         self._after_tick(snapshot, now)
+
+    def _log_states_due(self, now_ns: int) -> bool:
+        """Whether this tick's states go to the log (at most ``log_state_rate_hz``)."""
+        if now_ns < self._next_state_log_ns:
+            return False
+        period = round(1e9 / self.params.log_state_rate_hz)
+        self._next_state_log_ns = max(self._next_state_log_ns + period, now_ns + period // 2)
+        return True
 
     def _advance(self, steps: int):
         """Step the engine; the snapshot, or None if the model stalled (then stopping)."""
@@ -442,7 +453,7 @@ class TwinNode(Node):
         every = max(1, round(1.0 / (rate_hz * self.tick_s)))
         return self.ticks % every == 0
 
-    def _publish(self, topic: str, message, time_ns: int) -> None:
+    def _publish(self, topic: str, message, time_ns: int, log: bool = True) -> None:
         data = serialize_message(message)           # once, for the wire and for the log
         try:
             self._outputs[topic].publish(data)
@@ -450,7 +461,7 @@ class TwinNode(Node):
             if self.context.ok():
                 raise
             return                                  # a signal shut the context down mid-tick
-        if self.log:
+        if log and self.log:
             self.log.write_serialized(topic, data, time_ns)
 
     # -- health --------------------------------------------------------------------------
