@@ -1,4 +1,5 @@
-"""drill_twin: a digital twin of a vertical drill string.
+"""
+drill_twin: a digital twin of a vertical drill string.
 
 The package is layered; the folders say how:
 

@@ -21,8 +21,10 @@ os.environ.setdefault('RERUN_TELEMETRY', '0')
 
 
 def ros_variables(folder: Path, domain_id: int) -> dict[str, str]:
-    """Environment of an isolated ROS 2 run: its own domain, localhost only, FastDDS, the ROS
-    logs and rerun's ids under ``folder``."""
+    """Environment of an isolated ROS 2 run.
+
+    Its own domain, localhost only, FastDDS, the ROS logs and rerun's ids under ``folder``.
+    """
     return {'ROS_DOMAIN_ID': str(domain_id), 'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST',
             'RMW_IMPLEMENTATION': 'rmw_fastrtps_cpp', 'RERUN_TELEMETRY': '0',
             'ROS_LOG_DIR': str(folder / 'log'), 'XDG_CONFIG_HOME': str(folder / 'config'),

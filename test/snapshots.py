@@ -12,9 +12,11 @@ N_NODES = 57
 
 def snapshot(t: float, *, stations: int = 2, events=(), depth0: float = 1600.0,
              ensemble: bool = True, ensemble_lag_s: float = 0.01) -> TwinSnapshot:
-    """The twin at time t (s): bit speed 5 + 4 sin(t) rad/s, ROP 2 mm/s, WOB -100 kN, TOB
-    -3 kN m, station k at (v, w) = (0.01 (k + 1) cos t, 0.01 (k + 1) sin t) m, node 10 on
-    the wall with 2.5 kN."""
+    """The twin at time t (s).
+
+    Bit speed 5 + 4 sin(t) rad/s, ROP 2 mm/s, WOB -100 kN, TOB -3 kN m, station k at (v, w) =
+    (0.01 (k + 1) cos t, 0.01 (k + 1) sin t) m, node 10 on the wall with 2.5 kN.
+    """
     speed = 5.0 + 4.0 * math.sin(t)
     bit = BitState(depth0 + 2e-3 * t, 2e-3, -1e5, 5.0 * t, speed, -3e3)
     displacement = np.zeros((1, stations, 3))

@@ -1,5 +1,7 @@
-"""Bad input to the command line: one line ``drill-twin: ...`` naming the file or option, the
-key and the problem, and exit status 2; never a traceback (issue 9, item 5).
+"""Bad input to the command line.
+
+One line ``drill-twin: ...`` naming the file or option, the key and the problem, and exit status
+2; never a traceback (issue 9, item 5).
 
 One case per class of bad input, each through the real command in a subprocess.
 """
@@ -89,7 +91,8 @@ def test_a_configuration_that_cannot_be_integrated_is_refused_at_start(tmp_path,
 def test_a_run_that_diverges_after_the_preflight_is_one_line(tmp_path):
     """The pre-flight's short run is shortened to nothing, so that the run itself meets the
     failure of a Newton solve allowed one iteration at an unreachable tolerance (even on
-    sub-steps down to dt/16) at its first step: the command catches it, not the check."""
+    sub-steps down to dt/16) at its first step: the command catches it, not the check.
+    """
     code = ('import sys\n'
             'import drill_twin.dynamics.preflight as preflight\n'
             'preflight.SHORT_RUN_S = 0.0\n'

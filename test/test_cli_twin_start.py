@@ -1,7 +1,9 @@
-"""Start-up of ``drill-twin twin``: node parameters checked before the node starts (one line,
-exit 2, whether given as options, ``-p`` rules or in a params file), rclpy's own refusal
-caught as a backstop, and SIGINT/SIGTERM honoured from the first instant (issue 9, items 5
-and 6)."""
+"""Start-up of ``drill-twin twin``.
+
+Node parameters checked before the node starts (one line, exit 2, whether given as options,
+``-p`` rules or in a params file), rclpy's own refusal caught as a backstop, and SIGINT/SIGTERM
+honoured from the first instant (issue 9, items 5 and 6).
+"""
 from __future__ import annotations
 
 import os
@@ -55,8 +57,10 @@ def test_out_of_range_node_parameters_are_one_line(tmp_path, env, args, words):
 
 
 def test_rclpy_refusing_a_parameter_is_one_line_too(tmp_path, env):
-    """The node run directly (as a program embedding it would), past the command line's
-    checks: rclpy's InvalidParameterValueException becomes one line and status 2."""
+    """The node run directly (as a program embedding it would), past the command line's checks.
+
+    Rclpy's InvalidParameterValueException becomes one line and status 2.
+    """
     code = ('import sys\n'
             'from drill_twin.ros.twin_node import run\n'
             'sys.exit(run(["drill-twin", "--ros-args", "-p", "log_enabled:=false", "-p", '
@@ -116,7 +120,8 @@ def _signal_mask(pid: int, field: str) -> int:
 def test_a_stop_signal_during_start_up_stops_the_twin_cleanly(tmp_path, number):
     """Started as a non-interactive shell starts a background job (SIGINT ignored), the twin
     catches SIGINT and SIGTERM before it has even loaded rclpy, and a signal then (0.1 s
-    after the start at the earliest) stops it at once with status 0 and no traceback."""
+    after the start at the earliest) stops it at once with status 0 and no traceback.
+    """
     env = dict(os.environ, **ros_variables(tmp_path, DOMAIN_IDS[1]))
 
     def as_background_job():

@@ -1,6 +1,9 @@
-"""The drawworks (issue 13, docs/DRIVES.md): block-velocity input with the hook load
-measured, static equilibrium of the string against its weight, the autodriller's step
-response against the linearised closed form, and run-time switching."""
+"""The drawworks (issue 13, docs/DRIVES.md).
+
+Block-velocity input with the hook load measured, static equilibrium of the string against its
+weight, the autodriller's step response against the linearised closed form, and run-time
+switching.
+"""
 from __future__ import annotations
 
 import math
@@ -31,8 +34,11 @@ def _steady_rop(config):
 
 
 def test_block_velocity_holds_the_string_in_static_equilibrium():
-    """The block lowered at the steady ROP: the measured hook load is the string's weight as
-    the model counts it (envelope: W = H_S - f_c) minus the WOB, within the damping drag."""
+    """The block lowered at the steady ROP.
+
+    The measured hook load is the string's weight as the model counts it (envelope: W = H_S -
+    f_c) minus the WOB, within the damping drag.
+    """
     config = load_config(overrides=QUIET)
     rop = _steady_rop(config)
     config = load_config(overrides=QUIET + ['drawworks.mode=block_velocity',
@@ -68,9 +74,11 @@ def _equivalent_stiffness(config) -> float:
 
 
 def test_autodriller_step_response_on_wob_matches_the_linearised_loop():
-    """WOB' = k_eq (v_b - ROP(WOB)), v_b = v_I + K_p e, v_I' = K_i e, e = WOB_sp - WOB:
-    k_eq the line and the string's axial stiffness in series, ROP the bit-rock law
-    linearised at the start. Within 5 % of the 20 kN step."""
+    """WOB' = k_eq (v_b - ROP(WOB)), v_b = v_I + K_p e, v_I' = K_i e, e = WOB_sp - WOB.
+
+    K_eq the line and the string's axial stiffness in series, ROP the bit-rock law linearised at
+    the start. Within 5 % of the 20 kN step.
+    """
     setpoint = 100e3
     config = load_config(overrides=QUIET + ['drawworks.mode=autodriller',
                                             f'drawworks.weight_on_bit_setpoint_n={setpoint}'])

@@ -203,7 +203,8 @@ def test_lift_off_removes_the_bit_forces(law):
 @pytest.mark.parametrize('germ', [None, np.array([[[1.05, 0.08], [0.08, 0.93]]] * 4)])
 def test_bit_rock_jacobian(law, germ):
     """Analytic Jacobian against complex-step derivatives of the (random) law, also inside
-    the blend near ROP = 0."""
+    the blend near ROP = 0.
+    """
     rop = np.array([2.6e-3, 1.1e-3, 3.3e-3, 8e-5])
     omega = np.array([5.2, 0.7, 9.0, 4.0])
     _, _, _, jacobian = law.forces_and_jacobian(rop, omega, germ)

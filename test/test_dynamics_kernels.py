@@ -1,7 +1,8 @@
 """The compiled force kernels against a straightforward numpy implementation of the same
 formulas, on random batches (kept here, not in the package: the package has one
 implementation). The formulas themselves are checked against the energies in
-test_dynamics_forces.py."""
+test_dynamics_forces.py.
+"""
 from __future__ import annotations
 
 import numpy as np
@@ -81,7 +82,8 @@ def reference_contact(system, k, mu, eps, fields):
 
 def _random_fields(system, rng, members, lateral_m):
     """A batch with large random modal amplitudes, spinning, laterally deflected by up to
-    ``lateral_m`` (some nodes beyond the clearance), random accelerations."""
+    ``lateral_m`` (some nodes beyond the clearance), random accelerations.
+    """
     n = system.size
     q = rng.normal(size=(members, n)) * rng.uniform(0.5, 20.0, size=(members, 1))
     bending = system.blocks['bending_y'], system.blocks['bending_z']
@@ -119,7 +121,8 @@ def test_kernels_match_the_numpy_reference(system, members):
 
 def test_the_assembly_is_the_sum_of_the_kernels_and_reuses_its_work_arrays(system):
     """NonlinearForces sums the kernels and the bit law, projects on the basis, and its
-    results are not overwritten by the next evaluation of the same batch size."""
+    results are not overwritten by the next evaluation of the same batch size.
+    """
     forces = NonlinearForces(system)
     rng = np.random.default_rng(8)
     first = _random_fields(system, rng, 5, lateral_m=0.12)
@@ -212,7 +215,8 @@ def reference_law(law, rop, omega, germ):
 @pytest.mark.parametrize('random', [False, True])
 def test_the_law_kernel_matches_the_numpy_reference(default_config, random):
     """Random points over cutting, lift-off, ROP near and below 0, omega near, at and below 0
-    (the floor of 1/omega^2), with and without random germs."""
+    (the floor of 1/omega^2), with and without random germs.
+    """
     from drill_twin.dynamics.bit_rock import BitRockLaw
     law = BitRockLaw.from_config(default_config.bit_rock)
     rng = np.random.default_rng(5)
@@ -247,7 +251,8 @@ def test_the_law_kernel_matches_the_numpy_reference(default_config, random):
 
 def test_observe_reads_the_fields_of_the_state(default_config):
     """Observation's stations, hook and top torque against the field-wise vectors Phi q
-    (with the driven rotation on theta_x), computed here directly."""
+    (with the driven rotation on theta_x), computed here directly.
+    """
     from drill_twin.dynamics.simulator import Simulator
     simulator = Simulator(default_config, members=3,
                           germs=np.eye(2) + np.zeros((3, 2, 2)))
@@ -284,7 +289,8 @@ def test_observe_reads_the_fields_of_the_state(default_config):
 
 def test_a_step_with_wall_contact_matches_single_member_steps(default_config):
     """The compiled step on a batch with members pressed on the wall (Woodbury correction
-    of some members only) equals each member stepped alone, and conserves the touch flags."""
+    of some members only) equals each member stepped alone, and conserves the touch flags.
+    """
     from drill_twin.dynamics.simulator import Simulator
     members = 3
     germs = np.eye(2) + np.array([0.0, 0.02, -0.03])[:, None, None] * np.array(

@@ -76,10 +76,12 @@ def _energy_history(model, system, dt, spin_rad_per_s, steps):
 
 @pytest.mark.parametrize('spin', [0.0, 5.2])
 def test_undamped_free_string_conserves_energy(spin):
-    """No damping, fluid, contact, bit-rock law or imposed rotation: the energy of the
-    prestressed string with its finite-strain and kinetic-coupling forces (a freely spinning
-    string for the latter) is conserved up to the trapezoidal rule's second-order error,
-    which is small against the swing of the non-linear energy."""
+    """No damping, fluid, contact, bit-rock law or imposed rotation.
+
+    The energy of the prestressed string with its finite-strain and kinetic-coupling forces (a
+    freely spinning string for the latter) is conserved up to the trapezoidal rule's
+    second-order error, which is small against the swing of the non-linear energy.
+    """
     model, system = _free_string(spin > 0)
     drift, swing = _energy_history(model, system, 0.005, spin, 800)
     finer, _ = _energy_history(model, system, 0.0025, spin, 1600)
@@ -91,8 +93,11 @@ def test_undamped_free_string_conserves_energy(spin):
 # -- steady state and stationary regime --------------------------------------------------------
 
 def test_steady_drilling_agrees_with_the_bit_rock_law():
-    """Below the velocity-weakening branch (omega < 2 sqrt(3) e) drilling is steady: the bit
-    turns with the top, and ROP, WOB, TOB and the top torque obey the law and torque balance."""
+    """Below the velocity-weakening branch (omega < 2 sqrt(3) e) drilling is steady.
+
+    The bit turns with the top, and ROP, WOB, TOB and the top torque obey the law and torque
+    balance.
+    """
     omega = 2.0
     config = load_config(None, [f'operation.top_drive_speed_hz={_speed_hz(omega)}',
                                 'initial_conditions.steady_twist=true',
@@ -185,7 +190,8 @@ def test_stick_slip_cycle_is_converged_in_the_number_of_modes(key, counts):
     """The stationary stick-slip cycle (bit speed swinging about 2.1-8.5 rad/s) moves by less
     than 0.01 rad/s as modes are added (measured: 0.003 from 2 to 16 torsional modes).
     Pointwise histories are not compared: the paper's untwisted start is a torque step at
-    the bit, a wave that a modal sum resolves slowly, so the first second differs."""
+    the bit, a wave that a modal sum resolves slowly, so the first second differs.
+    """
     statistics = []
     for count in counts:
         result = run_simulation(load_config(None, [f'reduced_basis.{key}={count}']), 50.0,
@@ -202,7 +208,8 @@ def test_stick_slip_cycle_is_converged_in_the_number_of_modes(key, counts):
 
 def test_contact_keeps_the_string_inside_the_clearance():
     """Sent at the wall in its first lateral mode (free amplitude 0.15 m against a clearance
-    of 86.5 mm), the string bounces off with a penetration of a fraction of a millimetre."""
+    of 86.5 mm), the string bounces off with a penetration of a fraction of a millimetre.
+    """
     config = load_config(None, ['initial_conditions.lateral_deflection_m=0'])
     simulator = Simulator(config)
     system = simulator.system

@@ -48,8 +48,10 @@ def _random_problems(rng, m):
 
 @pytest.mark.parametrize('delta', [0.0, 0.1, 0.3])
 def test_bit_equation_is_solved_everywhere(law, delta):
-    """Random right-hand sides over lift-off, landing, rest, backward rotation and cutting:
-    every member gets a finite solution of both equations, on the law's graph."""
+    """Random right-hand sides over lift-off, landing, rest, backward rotation and cutting.
+
+    Every member gets a finite solution of both equations, on the law's graph.
+    """
     rng = np.random.default_rng(3)
     m = 3000
     b, c, rho = _random_problems(rng, m)
@@ -75,8 +77,11 @@ def test_bit_equation_is_solved_everywhere(law, delta):
 
 
 def test_backward_rotation_is_resisted(law):
-    """The regularised law as written for omega < 0: the cutting rate is even in omega (R ~
-    omega^2 near 0), the torque odd and opposed to the rotation."""
+    """The regularised law as written for omega < 0.
+
+    The cutting rate is even in omega (R ~ omega^2 near 0), the torque odd and opposed to the
+    rotation.
+    """
     omega = np.array([-3.0, -0.4, -1e-6, 0.0])
     force = np.full(4, -2e5)
     np.testing.assert_allclose(law.cutting_rate(force, omega), law.cutting_rate(force, -omega),
@@ -107,7 +112,8 @@ def test_torque_is_continuous_at_lift_off_and_at_the_threshold(law):
 
 def test_random_law_is_continuous_at_zero_speed(law):
     """Along the graph (ROP = R(f, omega)) the random forces go to the mean ones as omega -> 0+
-    (the blend in R; the previous blend in ROP left G12 sqrt(f t ROP / omega) unbounded)."""
+    (the blend in R; the previous blend in ROP left G12 sqrt(f t ROP / omega) unbounded).
+    """
     germ = np.array([[[0.8, -0.25], [-0.25, 1.2]]])
     force = np.array([-1.5e5])
     for omega in (1e-2, 1e-3, 1e-4):
@@ -244,7 +250,8 @@ def test_scripted_sweep_of_the_envelope(system, dt):
     WOB 250 kN (the bit turns backwards: the reported failure), stop on bottom and restart,
     lift the bit off with the whole weight on the hook, set it down, drill: no step of the
     mean model or of the germs at delta = 0.3 fails even on dt/16, all values finite, the
-    string inside the borehole."""
+    string inside the borehole.
+    """
     config, reduced = system
     config = load_config(None, ['reduced_basis.lateral_modes=20',
                                 f'integration.time_step_s={dt}'])
@@ -272,7 +279,8 @@ def test_scripted_sweep_of_the_envelope(system, dt):
                                    st.floats(0.05, 0.6)), min_size=2, max_size=4))
 def test_random_command_sequences_inside_the_envelope(system, dt, delta, seed, commands):
     """Top speed 0-30 rad/s and static WOB from -50 kN (the bit lifted: hook above the
-    weight) to 300 kN, held 0.05-0.6 s each, from a drilling start."""
+    weight) to 300 kN, held 0.05-0.6 s each, from a drilling start.
+    """
     config, reduced = system
     config = load_config(None, ['reduced_basis.lateral_modes=20',
                                 f'integration.time_step_s={dt}'])

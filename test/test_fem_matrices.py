@@ -148,7 +148,8 @@ def test_stiffness_is_semidefinite_and_tangent_definite(default_analysis):
 
 def test_fluid_coriolis_is_skew_but_for_jumps_of_its_coefficient(default_analysis):
     """The gyroscopic term c int N^T N' dx does no work, except the point terms
-    (c_left - c_right) / 2 where c changes (section junction) or ends (top, bit)."""
+    (c_left - c_right) / 2 where c changes (section junction) or ends (top, bit).
+    """
     from drill_twin.fem.assembly import assemble_matrix
     from drill_twin.fem.fluid import coriolis_coefficient, fluid_coriolis_matrices
     model = default_analysis[0]

@@ -38,7 +38,8 @@ def _set_options(overrides):
 @pytest.fixture(scope='module')
 def coarse_map():
     """3 x 3 points across the linear boundary (stable at 3 rad/s and at 50 kN, unstable at
-    9-15 rad/s with 130-200 kN), 24 s each from steady drilling kicked by 0.5 rad/s."""
+    9-15 rad/s with 130-200 kN), 24 s each from steady drilling kicked by 0.5 rad/s.
+    """
     config = load_config(None, COARSE)
     spec = MapSpec(speeds_rad_per_s=(3.0, 9.0, 15.0), weights_on_bit_n=(50e3, 130e3, 200e3),
                    duration_s=24.0, window_s=14.0)
@@ -47,7 +48,8 @@ def coarse_map():
 
 def test_simulated_points_agree_with_the_linear_stability(coarse_map):
     """Linearly stable points are steady (SSI < 0.05), unstable ones oscillate, but within one
-    grid step of the boundary; away from it both classes are represented."""
+    grid step of the boundary; away from it both classes are represented.
+    """
     verdicts = [row['linear_comparison'] for row in coarse_map.rows]
     assert 'disagree' not in verdicts and 'failed' not in verdicts
     agreeing = [row for row in coarse_map.rows if row['linear_comparison'] == 'agree']
@@ -60,7 +62,8 @@ def test_simulated_points_agree_with_the_linear_stability(coarse_map):
 
 def test_the_limit_cycle_runs_at_the_first_torsional_mode(coarse_map):
     """Unstable points oscillate near the frequency of the growing eigenvalue (the first
-    torsional mode, lowered by the stick phases as the severity grows)."""
+    torsional mode, lowered by the stick phases as the severity grows).
+    """
     for row in coarse_map.rows:
         if not row['linearly_stable']:
             assert 0.6 * row['frequency_hz'] < row['oscillation_frequency_hz'] \
@@ -68,8 +71,11 @@ def test_the_limit_cycle_runs_at_the_first_torsional_mode(coarse_map):
 
 
 def test_the_weight_on_bit_is_set_through_the_hook_load(coarse_map):
-    """Momentum balance of the axially free string: the mean WOB is W - H whatever the
-    stick-slip (to the drag and the change of axial momentum over the window)."""
+    """Momentum balance of the axially free string.
+
+    The mean WOB is W - H whatever the stick-slip (to the drag and the change of axial momentum
+    over the window).
+    """
     wob = coarse_map.column('weight_on_bit_n')
     assert_allclose(coarse_map.column('weight_on_bit_mean_n'), wob, rtol=2e-3)
     weight = coarse_map.column('hook_load_n') + wob
@@ -134,8 +140,10 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys, options, option):
 
 
 def test_cli_writes_the_map_and_a_process_pool_reproduces_an_in_process_run(tmp_path):
-    """The command's files and columns (the contract); the same numbers from a worker
-    process as from this process with the written config.yaml."""
+    """The command's files and columns (the contract).
+
+    The same numbers from a worker process as from this process with the written config.yaml.
+    """
     out = tmp_path / 'map'
     options = ['--speeds', '4,8', '--weights-on-bit', '150e3', '--duration', '2',
                '--window', '1', '--seed', '7']
@@ -168,7 +176,8 @@ def _numbers(path):
 
 def test_a_diverging_point_is_a_failed_row_not_a_crash(tmp_path):
     """A point whose step cannot converge (one iteration allowed, an unreachable tolerance)
-    is written as NaN statistics with failed = 1 and the error; the others still run."""
+    is written as NaN statistics with failed = 1 and the error; the others still run.
+    """
     config = load_config(None, COARSE + ['integration.max_iterations=1',
                                          'integration.tolerance=1e-300'])
     spec = MapSpec(speeds_rad_per_s=(8.0,), weights_on_bit_n=(150e3,), duration_s=1.0,

@@ -127,7 +127,8 @@ def test_the_hole_never_gets_shallower_and_the_bit_went_up_two_metres(sequence):
 
 def test_off_bottom_the_hook_carries_the_strings_weight(sequence):
     """Hovering, the hook load found by the velocity loop (which does not know the weight)
-    is the string's weight as the model counts it, H_S - f_c, within the damping drag."""
+    is the string's weight as the model counts it, H_S - f_c, within the damping drag.
+    """
     config, simulator, table, marks, weight, _ = sequence
     model = simulator.system.model
     mass = np.sum(model.mesh.density_kg_per_m3 * model.mesh.area_m2 * model.mesh.length_m)
@@ -143,9 +144,11 @@ def test_off_bottom_the_hook_carries_the_strings_weight(sequence):
 
 
 def test_the_landing_is_detected(sequence):
-    """The bit tags bottom when it reaches the hole bottom; landing turning backwards (the
-    torsional swing of a string spun off bottom) it rests on the rock, the string's axial
-    wave bounces it a few times, then it stays on bottom."""
+    """The bit tags bottom when it reaches the hole bottom.
+
+    Landing turning backwards (the torsional swing of a string spun off bottom) it rests on the
+    rock, the string's axial wave bounces it a few times, then it stays on bottom.
+    """
     _, _, table, marks, _, _ = sequence
     first = np.flatnonzero(table['landings'] > 0)[0]
     assert table['t'][first] == pytest.approx(marks['landed'])
@@ -158,7 +161,8 @@ def test_the_landing_is_detected(sequence):
 def test_drilling_resumes_at_the_same_stationary_rop(sequence):
     """Before the pick-up the bit drills steadily at the law's ROP for the top speed and the
     weight on bit; after the set-down it drills at the same ROP on average (the torsional swing
-    of the landing still decays: 8 % rms 20 s later, damped by the law)."""
+    of the landing still decays: 8 % rms 20 s later, damped by the law).
+    """
     config, _, table, marks, _, _ = sequence
     law = BitRockLaw.from_config(config.bit_rock)
     before = (table['t'] > marks['drilled'] - 2.0) & (table['t'] <= marks['drilled'])

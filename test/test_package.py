@@ -96,8 +96,10 @@ def test_package_xml_declares_what_the_node_imports():
 
 
 def test_launch_file_is_installed_and_starts_the_twin(installed_prefix, monkeypatch):
-    """``ros2 launch drill_twin twin.launch.py``: the launch file is installed, and its
-    description starts the ``twin`` executable of this package with the installed parameters.
+    """``ros2 launch drill_twin twin.launch.py``.
+
+    The launch file is installed, and its description starts the ``twin`` executable of this
+    package with the installed parameters.
 
     launch and launch_ros are not on PyPI, so they are replaced by recorders of what the file
     asks for (the only part mocked); the file itself and the paths are the installed ones.

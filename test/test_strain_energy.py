@@ -92,9 +92,11 @@ def test_energy_and_stresses_match_the_3d_derivation(seed):
 
 
 def test_agrees_with_the_printed_eq15_where_it_should():
-    """Eq. 15 as printed and the kinematics used here give the same energy when the section
-    is not twisted (theta_x = theta_x' = 0), and the same tangent (so the same [K] and
-    [K_g]) about an axial prestress; they differ only in the twist-bending products of f_se.
+    """Eq. 15 as printed and the kinematics used here agree where the section is not twisted.
+
+    They give the same energy when the section is not twisted (theta_x = theta_x' = 0), and the
+    same tangent (so the same [K] and [K_g]) about an axial prestress; they differ only in the
+    twist-bending products of f_se.
     """
     rng = np.random.default_rng(7)
     ours, ours_gradient = _energy_density_3d(paper_eq15=False)
@@ -122,8 +124,11 @@ def test_agrees_with_the_printed_eq15_where_it_should():
 
 
 def test_printed_eq15_is_not_invariant_under_rigid_rotation():
-    """Why Eq. 15 is not taken literally: a bent, shear-free beam spun rigidly about its
-    axis would store energy that depends on the spin angle (docs/MODEL-CHOICES.md)."""
+    """Why Eq. 15 is not taken literally.
+
+    A bent, shear-free beam spun rigidly about its axis would store energy that depends on the
+    spin angle (docs/MODEL-CHOICES.md).
+    """
     paper, _ = _energy_density_3d(paper_eq15=True)
     ours, _ = _energy_density_3d(paper_eq15=False)
     slope = 1e-3
@@ -148,8 +153,11 @@ def test_linear_part_is_the_timoshenko_beam():
 
 
 def test_geometric_stiffness_terms_of_an_axial_prestress():
-    """MODEL.md point 3: 3N on u' and the bending rotations, N on v'^2 and w'^2, N I_p/A on
-    theta_x'^2 (N = EA e0), to first order in the prestrain e0."""
+    """MODEL.md point 3.
+
+    3N on u' and the bending rotations, N on v'^2 and w'^2, N I_p/A on theta_x'^2 (N = EA e0),
+    to first order in the prestrain e0.
+    """
     s = _section()
     e0 = 1e-6
     n = float(s.EA) * e0

@@ -1,7 +1,9 @@
-"""The dynamic top drive against closed forms (issue 13, docs/DRIVES.md): the string's
-torque predicted one step ahead, the torsional eigenfrequencies of the string with the drive's
-inertia and the PI loop's stiffness at the top, the PI step response on a rigid string, the
-torque limit, and the energy balance over a stick-slip cycle."""
+"""The dynamic top drive against closed forms (issue 13, docs/DRIVES.md).
+
+The string's torque predicted one step ahead, the torsional eigenfrequencies of the string with
+the drive's inertia and the PI loop's stiffness at the top, the PI step response on a rigid
+string, the torque limit, and the energy balance over a stick-slip cycle.
+"""
 from __future__ import annotations
 
 import math
@@ -35,7 +37,8 @@ def shaft_frequencies_hz(config, inertia, spring, f_max_hz, bit_inertia=0.0):
     """Torsional eigenfrequencies (Hz) of the sections of ``config`` as continuous shafts
     (stiffness k_s G I_p, MODEL.md), an inertia ``inertia`` (kg m^2) on a spring ``spring``
     (N m/rad) to ground at the top and ``bit_inertia`` at the free bit: the roots of the
-    transfer-matrix frequency equation, bracketed on a fine grid."""
+    transfer-matrix frequency equation, bracketed on a fine grid.
+    """
     def bit_residual(omega):
         theta, torque = 1.0, spring - omega ** 2 * inertia
         for s in config.sections:
@@ -93,8 +96,11 @@ def test_bad_drive_values_are_refused_naming_the_key(item, key):
 
 
 def test_the_predicted_string_torque_is_the_simulators_for_a_linear_string():
-    """The torsional block is linear here: the one-step predictor must replay the
-    simulator's Newmark step exactly (the coupling then has no lag)."""
+    """The torsional block is linear here.
+
+    The one-step predictor must replay the simulator's Newmark step exactly (the coupling then
+    has no lag).
+    """
     simulator = _simulator(LINEAR + ['reduced_basis.torsional_modes=6',
                                      'top_drive.proportional_gain_nm_s_per_rad=0',
                                      'top_drive.integral_gain_nm_per_rad=3e4'])
@@ -111,10 +117,12 @@ def test_the_predicted_string_torque_is_the_simulators_for_a_linear_string():
 
 
 def test_eigenfrequencies_with_the_drive_inertia_and_pi_stiffness_match_the_shaft():
-    """An integral-only loop is a torsional spring K_i to the set-point angle: the string
-    with J_d on that spring at the top, free at the bit. The frequencies measured from the
-    simulated free response (matrix pencil on the top speed) match the continuous two-section
-    shaft within 0.5 %."""
+    """An integral-only loop is a torsional spring K_i to the set-point angle.
+
+    The string with J_d on that spring at the top, free at the bit. The frequencies measured
+    from the simulated free response (matrix pencil on the top speed) match the continuous
+    two-section shaft within 0.5 %.
+    """
     inertia, spring = 2000.0, 3.0e4
     simulator = _simulator(LINEAR + ['reduced_basis.torsional_modes=12',
                                      'top_drive.proportional_gain_nm_s_per_rad=0',
@@ -142,8 +150,10 @@ def _rigid_string(dt, kp, ki, inertia):
 
 
 def test_pi_step_response_on_a_rigid_string_matches_the_closed_form():
-    """J e'' + K_p e' + K_i e = 0 for the speed error e, J = J_d + J_s; the drive's
-    backward-Euler step converges to it at first order."""
+    """J e'' + K_p e' + K_i e = 0 for the speed error e, J = J_d + J_s.
+
+    The drive's backward-Euler step converges to it at first order.
+    """
     kp, ki, inertia, step = 2.0e4, 5.0e4, 2000.0, 1.0
     errors = []
     for dt in (0.005, 0.0025):
@@ -189,7 +199,8 @@ def test_the_motor_torque_is_limited_and_the_integral_does_not_wind_up():
 def test_energy_balance_over_a_stick_slip_cycle():
     """Motor work + work of the bit = change of drive and string torsional energy +
     dissipation, over one stick-slip cycle of the paper's string (lateral motion off),
-    within 1 % of the motor work."""
+    within 1 % of the motor work.
+    """
     simulator = _simulator([
         'physics.contact=false', 'physics.kinetic_coupling=false',
         'physics.finite_strain=false', 'reduced_basis.lateral_modes=0',
@@ -214,8 +225,11 @@ def test_energy_balance_over_a_stick_slip_cycle():
 
 
 def test_the_simulator_attaches_the_configured_drive_and_a_failed_step_is_undone():
-    """Built from a config with ``top_drive.mode: dynamic`` the simulator drives its top with
-    the dynamic drive; the speed set back after a failed step restores the drive's state."""
+    """Built from a config with ``top_drive.mode.
+
+    Dynamic`` the simulator drives its top with the dynamic drive; the speed set back after a
+    failed step restores the drive's state.
+    """
     simulator = Simulator(load_config(overrides=LINEAR + ['reduced_basis.torsional_modes=2']))
     drive = simulator.top_drive
     assert isinstance(drive, DynamicTopDrive)

@@ -1,5 +1,7 @@
-"""Stick-slip controllers on the dynamic top drive (issue 13, docs/DRIVES.md): the reflection
-of a torsional pulse at the top, measured at a station of a long uniform pipe."""
+"""Stick-slip controllers on the dynamic top drive (issue 13, docs/DRIVES.md).
+
+The reflection of a torsional pulse at the top, measured at a station of a long uniform pipe.
+"""
 from __future__ import annotations
 
 import math
@@ -66,7 +68,8 @@ def test_the_configuration_picks_the_controller(default_config):
                                                    ('impedance', 0.0, 0.1)])
 def test_reflection_of_a_torsional_pulse_at_the_top(tmp_path, controller, low, high):
     """|r| about 1 at a stiff drive (a fixed end inverts the wave), below 0.1 when the drive
-    is a damper matched to the pipe's impedance."""
+    is a damper matched to the pipe's impedance.
+    """
     path = tmp_path / 'pipe.yaml'
     path.write_text(PIPE)
     config = load_config(path, overrides=LINEAR + [f'top_drive.controller={controller}'])
@@ -126,8 +129,11 @@ def _system(config):
 
 
 def test_linear_stability_with_one_mode_is_the_closed_form():
-    """One mass-normalised torsional mode at the imposed speed: s^2 + (c_1 + phi_b^2 D) s +
-    w_1^2 = 0, growth rate -(c_1 + phi_b^2 D) / 2 when it oscillates."""
+    """One mass-normalised torsional mode at the imposed speed.
+
+    S^2 + (c_1 + phi_b^2 D) s + w_1^2 = 0, growth rate -(c_1 + phi_b^2 D) / 2 when it
+    oscillates.
+    """
     from drill_twin.dynamics.drive_stability import growth_rate_per_s
     config = load_config(overrides=['reduced_basis.lateral_modes=0',
                                     'reduced_basis.torsional_modes=1'])
@@ -143,7 +149,8 @@ def test_linear_stability_with_one_mode_is_the_closed_form():
 
 def test_a_stiff_drive_is_the_kinematic_one_and_the_torque_feedback_stabilises_100_kn():
     """At the paper's point (velocity weakening D = -179 N m s/rad) the kinematic and stiff
-    drives grow (stick-slip) at the same rate; soft_torque and impedance make it decay."""
+    drives grow (stick-slip) at the same rate; soft_torque and impedance make it decay.
+    """
     from drill_twin.dynamics.drive_stability import (bit_torque_slope_nm_s_per_rad,
                                                      growth_rate_per_s)
     config = load_config(overrides=['reduced_basis.lateral_modes=0'])

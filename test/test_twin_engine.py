@@ -25,9 +25,12 @@ def _engine(config, members=4):
 
 
 def test_a_diverged_member_is_restarted_and_the_others_go_on(config):
-    """Corrupt one ensemble member's state: its next step fails for it alone; it is
-    restarted from a safe state at its depth, the step is retried and time advances; the
-    other members and the mean model are exactly as in an undisturbed twin."""
+    """Corrupt one ensemble member's state.
+
+    Its next step fails for it alone; it is restarted from a safe state at its depth, the step
+    is retried and time advances; the other members and the mean model are exactly as in an
+    undisturbed twin.
+    """
     with threadpool_limits(limits=1, user_api='blas'):
         disturbed, clean = _engine(config), _engine(config)
         for engine in (disturbed, clean):
@@ -55,9 +58,11 @@ def test_a_diverged_member_is_restarted_and_the_others_go_on(config):
 
 
 def test_an_ensemble_in_a_worker_process_computes_the_same_numbers(config):
-    """The worker process receives the reduced system built here: its members match the
-    in-process ensemble bit for bit, one tick behind the mean model, under changing
-    commands; the mean model does not depend on the ensemble at all."""
+    """The worker process receives the reduced system built here.
+
+    Its members match the in-process ensemble bit for bit, one tick behind the mean model, under
+    changing commands; the mean model does not depend on the ensemble at all.
+    """
     with threadpool_limits(limits=1, user_api='blas'):
         local = _engine(config)
         alone = _engine(config, members=0)

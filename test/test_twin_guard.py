@@ -42,7 +42,8 @@ def _advance(engine, steps):
 
 def test_envelope_of_a_dry_string_is_its_weight_mass_and_drag():
     """Without fluid the string's weight is g sum(rho A L), its axial mass sum(rho A L) and
-    its drag alpha times that mass; the BHA (the collars) weighs g rho A_c L_c."""
+    its drag alpha times that mass; the BHA (the collars) weighs g rho A_c L_c.
+    """
     config = load_config(None, TWIN_STEP + ['physics.fluid=false'])
     envelope = StringEnvelope.of(Simulator(config).system)
     masses = [s.length_m * s.density_kg_per_m3 * math.pi / 4
@@ -73,8 +74,11 @@ def test_a_short_bha_caps_the_weight_on_bit():
 
 
 def test_the_weight_is_the_hook_load_of_zero_weight_on_bit(config):
-    """The stationary WOB is f_c + (H - H_S) (README): zero at H = W = H_S - f_c; the paper's
-    string weighs 1.16 MN as the model counts it (steel and fluid)."""
+    """The stationary WOB is f_c + (H - H_S) (README).
+
+    Zero at H = W = H_S - f_c; the paper's string weighs 1.16 MN as the model counts it (steel
+    and fluid).
+    """
     simulator = Simulator(config)
     prestress = simulator.system.model.prestress
     envelope = StringEnvelope.of(simulator.system)
@@ -105,8 +109,10 @@ def test_hook_loads_the_model_cannot_represent_are_refused(config):
 
 
 def test_the_highest_hook_load_lifts_the_string_no_faster_than_a_block(config):
-    """At the largest accepted hook load the string rises at most at the block speed: the
-    excess over the weight balanced by the axial drag (terminal speed dH / C = v_block)."""
+    """At the largest accepted hook load the string rises at most at the block speed.
+
+    The excess over the weight balanced by the axial drag (terminal speed dH / C = v_block).
+    """
     engine = _engine(config)
     envelope = engine.envelope
     engine.set_hook_load(envelope.hook_load_max_n)
@@ -130,10 +136,12 @@ def test_the_highest_hook_load_lifts_the_string_no_faster_than_a_block(config):
 # -- the state guard -------------------------------------------------------------------------
 
 def test_a_hook_load_past_the_door_trips_the_guard_and_nothing_implausible_comes_out(config):
-    """3 MN sent straight to the simulator (as if the door were open): the mean model's
-    steps break the speed bounds; each breach is an ERROR event, the mean model goes back to
-    its last good state and restarts there; every snapshot stays in the hole at plausible
-    speeds (before the guard the bit left the hole upwards at hundreds of m/s)."""
+    """3 MN sent straight to the simulator (as if the door were open).
+
+    The mean model's steps break the speed bounds; each breach is an ERROR event, the mean model
+    goes back to its last good state and restarts there; every snapshot stays in the hole at
+    plausible speeds (before the guard the bit left the hole upwards at hundreds of m/s).
+    """
     engine = _engine(config)
     guard = engine._mean.guard
     engine.simulator.set_hook_load(3.0e6)
@@ -156,8 +164,10 @@ def test_a_hook_load_past_the_door_trips_the_guard_and_nothing_implausible_comes
     ('bit_rock.a2_m_per_n_s=1.0', 'ROP 8.718e+04 m/s is beyond +-5 m/s'),
 ])
 def test_a_configuration_implausible_from_the_start_is_refused(override, words):
-    """The steady state of these bit-rock laws drills at metres or kilometres per second:
-    the engine refuses the configuration with one line instead of publishing it."""
+    """The steady state of these bit-rock laws drills at metres or kilometres per second.
+
+    The engine refuses the configuration with one line instead of publishing it.
+    """
     config = load_config(None, TWIN_STEP + [override])
     with pytest.raises(ConfigError) as caught:
         TwinEngine(config, EnsembleSettings(members=0))
@@ -166,9 +176,11 @@ def test_a_configuration_implausible_from_the_start_is_refused(override, words):
 
 
 def test_an_implausible_member_is_restarted_and_the_others_go_on(config):
-    """A finite but absurd axial speed in one ensemble member (10 m/s on the rigid mode):
-    only that member is put back and restarted (a WARN), the other members and the mean
-    model are exactly as in an undisturbed twin."""
+    """A finite but absurd axial speed in one ensemble member (10 m/s on the rigid mode).
+
+    Only that member is put back and restarted (a WARN), the other members and the mean model
+    are exactly as in an undisturbed twin.
+    """
     disturbed, clean = _engine(config, members=3), _engine(config, members=3)
     _advance(disturbed, 20)
     _advance(clean, 20)
@@ -191,8 +203,11 @@ def test_an_implausible_member_is_restarted_and_the_others_go_on(config):
 
 
 def test_every_bound_of_the_guard_trips(config):
-    """Each bound on its own, on a converged state of one member: the lateral displacement
-    beyond the clearance, the bit below the bottom of the hole, the kinetic energy."""
+    """Each bound on its own, on a converged state of one member.
+
+    The lateral displacement beyond the clearance, the bit below the bottom of the hole, the
+    kinetic energy.
+    """
     simulator = Simulator(config)
     simulator.step()
     guard = StateGuard(simulator.system, simulator.law)

@@ -28,8 +28,10 @@ def config_from_args(args: argparse.Namespace) -> DrillStringConfig:
 
 
 class OneLineArgumentParser(argparse.ArgumentParser):
-    """argparse's parser whose errors (an option missing, a value of the wrong type) are one
-    line and exit status 2, like every other bad input, instead of the usage and a line."""
+    """
+    argparse's parser whose errors (an option missing, a value of the wrong type) are one
+    line and exit status 2, like every other bad input, instead of the usage and a line.
+    """
 
     def error(self, message: str):
         self.exit(EXIT_USAGE, f'drill-twin: {message} (see {self.prog} --help)\n')
@@ -50,9 +52,12 @@ def report_and_exit_code(error: Exception) -> int:
 # -- checks of the configuration beyond its schema ----------------------------------------------
 
 def preflight_or_refuse(config: DrillStringConfig, overrides=(), short_run: bool = True):
-    """Build the model and run :func:`drill_twin.dynamics.preflight.preflight`; a refusal
-    becomes a :class:`ConfigError` blamed on ``--set`` or the file (returns the
-    ``PreflightResult``)."""
+    """
+    Build the model and run :func:`drill_twin.dynamics.preflight.preflight`.
+
+    A refusal becomes a :class:`ConfigError` blamed on ``--set`` or the file (returns the
+    ``PreflightResult``).
+    """
     from drill_twin.dynamics.preflight import SHORT_RUN_S, PreflightError, preflight
 
     try:
@@ -74,9 +79,12 @@ def build_model_or_refuse(config: DrillStringConfig, overrides=()):
 
 def blamed(config: DrillStringConfig, overrides, message: str, key: str = '',
            related=()) -> ConfigError:
-    """A problem of ``config`` as a ConfigError naming where ``key`` came from: ``--set`` if
-    an override set it (or one of the ``related`` keys), else the file; a problem of the
-    configuration as a whole (no key) names the file and every override."""
+    """
+    A problem of ``config`` as a ConfigError naming where ``key`` came from.
+
+    ``--set`` if an override set it (or one of the ``related`` keys), else the file; a problem
+    of the configuration as a whole (no key) names the file and every override.
+    """
     overrides = list(overrides)
     if key:
         keys = (key, *related)
@@ -99,8 +107,11 @@ def positive_seconds(option: str, value: float) -> float:
 
 
 def available_memory_bytes() -> int:
-    """Memory this process may still take: MemAvailable of /proc/meminfo (Linux), else the
-    free physical pages."""
+    """
+    Memory this process may still take.
+
+    MemAvailable of /proc/meminfo (Linux), else the free physical pages.
+    """
     try:
         with open('/proc/meminfo') as handle:
             for line in handle:

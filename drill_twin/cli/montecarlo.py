@@ -24,8 +24,12 @@ def window_records(config, window_s: float) -> int:
 
 
 def study_bytes(samples: int, records: int) -> float:
-    """Memory of a study's series: 5 quantities per realization and instant, held by the
-    chunks, the gathered arrays and the statistics' sorted copies (three times)."""
+    """
+    Memory of a study's series.
+
+    5 quantities per realization and instant, held by the chunks, the gathered arrays and the
+    statistics' sorted copies (three times).
+    """
     from drill_twin.uncertainty.montecarlo import QUANTITIES
 
     return 3.0 * 8 * len(QUANTITIES) * samples * records

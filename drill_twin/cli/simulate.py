@@ -71,8 +71,11 @@ def run(args: argparse.Namespace) -> int:
 
 
 def history_size(config, duration_s: float, members: int = 1) -> tuple[float, float]:
-    """(records, bytes) of the history ``run_simulation`` keeps for ``duration_s``: the
-    recorder's preallocated arrays and the result's copy of them."""
+    """
+    (records, bytes) of the history ``run_simulation`` keeps for ``duration_s``.
+
+    The recorder's preallocated arrays and the result's copy of them.
+    """
     from drill_twin.simulation.history import BIT_CHANNELS, SHARED_CHANNELS, STATION_FIELDS
 
     dt = config.integration.time_step_s

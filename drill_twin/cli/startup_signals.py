@@ -1,4 +1,5 @@
-"""SIGINT and SIGTERM honoured from the first instant of ``drill-twin twin``.
+"""
+SIGINT and SIGTERM honoured from the first instant of ``drill-twin twin``.
 
 A job started in the background by a non-interactive shell starts with SIGINT ignored, and
 Python then installs no KeyboardInterrupt handler; until ``rclpy.init`` installs its own, half
@@ -20,8 +21,12 @@ _state = {'installed': False, 'armed': False, 'pending': None}
 
 
 def wanted(argv: list[str]) -> bool:
-    """Whether this process runs the twin: ``drill-twin twin ...``, ``python -m
-    drill_twin.cli.main twin ...`` or the ``lib/drill_twin/twin`` launcher."""
+    """
+    Whether this process runs the twin.
+
+    ``drill-twin twin ...``, ``python -m drill_twin.cli.main twin ...`` or the
+    ``lib/drill_twin/twin`` launcher.
+    """
     return (len(argv) > 1 and argv[1] == 'twin') or (
         bool(argv) and os.path.basename(argv[0]) == 'twin')
 

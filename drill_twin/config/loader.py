@@ -1,4 +1,5 @@
-"""Load a drill-string configuration: YAML -> merged mapping -> frozen dataclasses.
+"""
+Load a drill-string configuration: YAML -> merged mapping -> frozen dataclasses.
 
 The built-in defaults are ``config/ritto2009.yaml``. A user file overrides any subset of
 its keys (mappings merge key by key; lists such as ``sections`` are replaced whole), and
@@ -59,9 +60,12 @@ def load_config(path: str | Path | None = None,
 
 
 def source_of(key: str, config: DrillStringConfig, overrides: Iterable[str] = ()) -> str:
-    """Whom a problem with ``key`` of ``config`` is blamed on: ``--set`` when one of the
-    ``overrides`` set that key, a key inside it or one containing it, else the file the
-    configuration came from (``config.source``)."""
+    """
+    Whom a problem with ``key`` of ``config`` is blamed on.
+
+    ``--set`` when one of the ``overrides`` set that key, a key inside it or one containing it,
+    else the file the configuration came from (``config.source``).
+    """
     if _set_by_override(key, '', config_to_dict(config), overrides):
         return '--set'
     return config.source
@@ -81,8 +85,12 @@ def _same_or_inside(key: str, prefix: str) -> bool:
 
 
 def labelled_path(raw: dict, path: str) -> str:
-    """A dotted path as errors name it: list items by their ``name`` (else their index), so
-    that ``sections.1.length_m`` reads ``sections.drill_collar.length_m``."""
+    """
+    A dotted path as errors name it.
+
+    List items by their ``name`` (else their index), so that ``sections.1.length_m`` reads
+    ``sections.drill_collar.length_m``.
+    """
     node: Any = raw
     labels = []
     for key in path.split('.'):

@@ -1,4 +1,5 @@
-"""The configuration of a drill-string model as frozen dataclasses.
+"""
+The configuration of a drill-string model as frozen dataclasses.
 
 Every quantity is SI and carries its unit in its name. The checks here refuse input
 that is physically impossible; the loader (``loader.py``) turns YAML into these objects
@@ -24,7 +25,8 @@ InitialShape = Literal['first_lateral_mode', 'half_sine']
 
 
 class ConfigValueError(ValueError):
-    """A value that cannot describe a real drill string.
+    """
+    A value that cannot describe a real drill string.
 
     ``key`` is the dotted path relative to the object that raised it; the loader
     prefixes the path of that object.
@@ -119,7 +121,8 @@ ITERATIONS_REASON = 'Newton\'s method converges in a few iterations or not at al
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class Section:
-    """A run of identical tubulars (drill pipe, heavy-weight pipe, collars).
+    """
+    A run of identical tubulars (drill pipe, heavy-weight pipe, collars).
 
     Sections are listed top to bottom; ``elements`` finite elements of equal length
     discretise the section.
@@ -406,11 +409,14 @@ LINE_STIFFNESS_REASON = 'a drill line of 12 lines of 1.5 in wire over 50 m is ab
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class TopDrive:
-    """The top drive (docs/DRIVES.md). ``kinematic``: the paper's imposed speed (the string's
-    top rotation follows the command at ``operation.top_drive_acceleration_rad_per_s2``);
-    ``dynamic``: a rotor of ``inertia_kg_m2`` (referred to the main shaft through the gearbox)
-    under a PI speed controller whose motor torque is limited to ``torque_limit_nm``, driving
-    the string's top, with the speed set-point shaped by ``controller``.
+    """
+    The top drive (docs/DRIVES.md).
+
+    ``kinematic``: the paper's imposed speed (the string's top rotation follows the command at
+    ``operation.top_drive_acceleration_rad_per_s2``); ``dynamic``: a rotor of ``inertia_kg_m2``
+    (referred to the main shaft through the gearbox) under a PI speed controller whose motor
+    torque is limited to ``torque_limit_nm``, driving the string's top, with the speed set-point
+    shaped by ``controller``.
 
     ``impedance_nm_s_per_rad`` (N m s/rad) is derived from the string unless given: for
     ``impedance`` the top pipe's characteristic impedance zeta = I_p sqrt(rho k_s G), for
@@ -447,12 +453,14 @@ class TopDrive:
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class Drawworks:
-    """The axial input (docs/DRIVES.md). ``hook_load``: the paper's hook force
-    (``operation.hook_load_n``); ``block_velocity``: the travelling block moves at
-    ``block_velocity_m_per_s`` (down > 0) and holds the top through a drill line of
-    ``line_stiffness_n_per_m`` and ``line_damping_n_s_per_m``, the hook load is measured;
-    ``autodriller``: the block velocity regulated (PI) to hold ``weight_on_bit_setpoint_n``
-    (> 0, compression).
+    """
+    The axial input (docs/DRIVES.md).
+
+    ``hook_load``: the paper's hook force (``operation.hook_load_n``); ``block_velocity``: the
+    travelling block moves at ``block_velocity_m_per_s`` (down > 0) and holds the top through a
+    drill line of ``line_stiffness_n_per_m`` and ``line_damping_n_s_per_m``, the hook load is
+    measured; ``autodriller``: the block velocity regulated (PI) to hold
+    ``weight_on_bit_setpoint_n`` (> 0, compression).
     """
 
     mode: DrawworksMode = 'hook_load'

@@ -1,4 +1,5 @@
-"""The bit's 2x2 equation of a Newmark iteration, solved by brackets so that it cannot fail.
+"""
+The bit's 2x2 equation of a Newmark iteration, solved by brackets so that it cannot fail.
 
 Inside an iteration the bit velocities x = (ROP, omega) at the end of the step obey
 
@@ -66,7 +67,8 @@ EXPANSIONS = 80
 
 
 def solve_bit_equation(law: BitRockLaw, b, c, rho, germ=None, omega_guess=None):
-    """Solve the module's equation for m members.
+    """
+    Solve the module's equation for m members.
 
     Args:
         law: the bit-rock law.
@@ -94,8 +96,11 @@ def solve_bit_equation(law: BitRockLaw, b, c, rho, germ=None, omega_guess=None):
 
 @kernel
 def solve_batch(b, c, rho, germ, random, guess, k, out):
-    """solve_one for every row of b, c (m, 2), rho, guess (m,); out (7, m): rop, omega,
-    force, torque, lifted, on bottom, cutting rate (flags as 0/1)."""
+    """
+    solve_one for every row of b, c (m, 2), rho, guess (m,).
+
+    Out (7, m): rop, omega, force, torque, lifted, on bottom, cutting rate (flags as 0/1).
+    """
     last = germ.shape[0] - 1
     for i in range(b.shape[0]):
         g = min(i, last)
@@ -259,9 +264,12 @@ def _illinois_start(lo, hi, r_lo, r_hi, tolerance, relative, residual_tolerance)
 
 @inline
 def _illinois_trial(lo, hi, r_lo, r_hi, count, reference):
-    """The next point: regula falsi, or a bisection when the secant point is not inside the
-    bracket or the bracket has not halved in BISECT_AFTER steps. (trial, bisect, count,
-    reference)."""
+    """
+    The next point.
+
+    Regula falsi, or a bisection when the secant point is not inside the bracket or the bracket
+    has not halved in BISECT_AFTER steps. (trial, bisect, count, reference).
+    """
     width = hi - lo
     count += 1
     stalled = False
@@ -277,9 +285,12 @@ def _illinois_trial(lo, hi, r_lo, r_hi, count, reference):
 @inline
 def _illinois_step(x, trial, r_trial, bisect, lo, hi, r_lo, r_hi, last_side, tolerance,
                    relative, residual_tolerance):
-    """Move the end of the bracket whose residual has the sign of r(trial); Illinois: the
-    end kept twice in a row has its residual halved. Converged when the bracket, or a
-    secant step, is below the tolerance, or the residual below ``residual_tolerance``."""
+    """
+    Move the end of the bracket whose residual has the sign of r(trial).
+
+    Illinois: the end kept twice in a row has its residual halved. Converged when the bracket,
+    or a secant step, is below the tolerance, or the residual below ``residual_tolerance``.
+    """
     if np.sign(r_trial) == np.sign(r_lo):
         if last_side == -1:
             r_hi = 0.5 * r_hi

@@ -1,4 +1,5 @@
-"""The bit-rock interaction law (Eq. 24-26) and its random counterpart (Eq. 42-50).
+"""
+The bit-rock interaction law (Eq. 24-26) and its random counterpart (Eq. 42-50).
 
 With the bit velocities x = (ROP, omega) = (du_bit/dt, dtheta_bit/dt), Z = omega / sqrt(omega^2
 + e^2) and s = omega^2 + e^2, the regularised law of Eq. 25 reads
@@ -65,13 +66,16 @@ class BitRockLaw:
         return np.array([self.a1, self.a2, self.a3, self.a4, self.a5, self.e, self.rop_scale])
 
     def mean(self, rop, omega):
-        """(f_bit, t_bit) of the regularised law, without the lift-off cut (any shape; complex
-        arguments for complex-step differentiation)."""
+        """
+        (f_bit, t_bit) of the regularised law, without the lift-off cut (any shape; complex
+        arguments for complex-step differentiation).
+        """
         force, torque, _, _ = _call_law(self, rop, omega, None, cut=False)
         return force, torque
 
     def forces(self, rop, omega, germ=None):
-        """(f_bit, t_bit, lifted): the law with lift-off, randomised by ``germ`` if given.
+        """
+        (f_bit, t_bit, lifted): the law with lift-off, randomised by ``germ`` if given.
 
         rop, omega: shape (m,) (real, or complex for complex-step derivatives); germ:
         (m, 2, 2) or None. Returns arrays of shape (m,).
@@ -86,41 +90,58 @@ class BitRockLaw:
 
     # -- the law as the bit's solve uses it: ROP and torque as functions of the force ------
     def cutting_rate(self, force, omega):
-        """R(f, omega) = Z^2 (-a1 - a2 f) + a3 omega Z (m/s): the rate the bit cuts at under the
-        mean-law force f (N, < 0 pushes), Eq. 25 solved for ROP; negative below the cutting
-        threshold. Smooth in f and omega, also at omega = 0 (R ~ omega^2), and even in omega
-        as the regularised law is (docs/MODEL-CHOICES.md, backward rotation)."""
+        """
+        R(f, omega) = Z^2 (-a1 - a2 f) + a3 omega Z (m/s).
+
+        The rate the bit cuts at under the mean-law force f (N, < 0 pushes), Eq. 25 solved for
+        ROP; negative below the cutting threshold. Smooth in f and omega, also at omega = 0 (R ~
+        omega^2), and even in omega as the regularised law is (docs/MODEL-CHOICES.md, backward
+        rotation).
+        """
         z = self._cutting_z(omega)
         return z * z * (-self.a1 - self.a2 * force) + self.a3 * omega * z
 
     def threshold_force(self, omega):
-        """f at which R(f, omega) = 0 for omega > 0, (a3 sqrt(omega^2 + e^2) - a1) / a2 (N),
-        written for any omega (even); about -47 kN at 5.2 rad/s, > 0 above 24.9 rad/s."""
+        """
+        f at which R(f, omega) = 0 for omega > 0, (a3 sqrt(omega^2 + e^2) - a1) / a2 (N),
+        written for any omega (even); about -47 kN at 5.2 rad/s, > 0 above 24.9 rad/s.
+        """
         return (self.a3 * np.sqrt(omega * omega + self.e * self.e) - self.a1) / self.a2
 
     def fade_force(self, omega):
-        """f_ref = min(threshold, -TORQUE_FADE_FORCE_N) (N): the torque fades in proportion
-        to the force between f_ref and lift-off (f = 0), see ``torque_of_force``."""
+        """
+        f_ref = min(threshold, -TORQUE_FADE_FORCE_N) (N).
+
+        The torque fades in proportion to the force between f_ref and lift-off (f = 0), see
+        ``torque_of_force``.
+        """
         return np.minimum(self.threshold_force(omega), -TORQUE_FADE_FORCE_N)
 
     @property
     def fade_speed_rad_per_s(self) -> float:
-        """Bit speed above which the threshold force exceeds -TORQUE_FADE_FORCE_N (rad/s):
-        below it, the torque fade never acts on the cutting branch (inf if it never does)."""
+        """
+        Bit speed above which the threshold force exceeds -TORQUE_FADE_FORCE_N (rad/s).
+
+        Below it, the torque fade never acts on the cutting branch (inf if it never does).
+        """
         if self.a3 <= 0:
             return float('inf')
         root = (self.a1 - self.a2 * TORQUE_FADE_FORCE_N) / self.a3
         return float(np.sqrt(max(root * root - self.e * self.e, 0.0))) if root > 0 else 0.0
 
     def torque_of_force(self, force, omega, cutting_rate=None):
-        """t_bit on bottom under the mean-law force f (N m):
+        """
+        t_bit on bottom under the mean-law force f (N m).
+
+        The torque is
 
             t = -Z (a4 max(R, 0) / sqrt(omega^2 + e^2) + a5) min(1, f / f_ref),
 
         which is Eq. 26, t = -a4 ROP omega / s - a5 Z, wherever the bit cuts with f <= f_ref
         (the whole cutting branch below 24.8 rad/s). Below the cutting threshold (the bit
         rests on the rock, ROP = 0) the friction-like term -a5 Z is carried in proportion to
-        the force and vanishes at lift-off, so the torque is continuous in f everywhere."""
+        the force and vanishes at lift-off, so the torque is continuous in f everywhere.
+        """
         s = omega * omega + self.e * self.e
         root = np.sqrt(s)
         rate = self.cutting_rate(force, omega) if cutting_rate is None else cutting_rate
@@ -128,7 +149,8 @@ class BitRockLaw:
         return -(omega / root) * (self.a4 * np.maximum(rate, 0.0) / root + self.a5) * share
 
     def randomised(self, force, torque, rop, cutting_rate, omega, germ):
-        """(F1, F2) of the random law at a point of the law's graph (shapes (m,)).
+        """
+        (F1, F2) of the random law at a point of the law's graph (shapes (m,)).
 
         force, torque: the mean law there; rop: the bit's ROP (>= cutting rate on bottom);
         cutting_rate: R(f, omega). The deviation of Eq. 50, written with A = diag(-f/ROP,
@@ -172,8 +194,9 @@ _IDENTITY_GERM = np.eye(2)[None]
 
 @inline
 def away_from_zero(omega):
-    """omega with its real part kept at least OMEGA_FLOOR in magnitude (imaginary part
-    untouched)."""
+    """
+    omega with its real part kept at least OMEGA_FLOOR in magnitude (imaginary part untouched).
+    """
     real = omega.real
     if abs(real) < OMEGA_FLOOR_RAD_PER_S:
         floored = -OMEGA_FLOOR_RAD_PER_S if real < 0 else OMEGA_FLOOR_RAD_PER_S
@@ -183,9 +206,12 @@ def away_from_zero(omega):
 
 @inline
 def law_point(rop, omega, g11, g12, g22, random, k):
-    """(f, t, J00, J01, J10, J11) of the law at one (ROP, omega), before the lift-off cut:
+    """
+    (f, t, J00, J01, J10, J11) of the law at one (ROP, omega), before the lift-off cut.
+
     Eq. 25-26 and, with ``random``, the blended random law on C (module docstring) with its
-    Jacobian by the chain rule."""
+    Jacobian by the chain rule.
+    """
     a1, a2, a3, a4, a5, e, scale = k[0], k[1], k[2], k[3], k[4], k[5], k[6]
     e2 = e * e
     w = away_from_zero(omega)
@@ -283,9 +309,11 @@ def maximum(a, b):
 
 @kernel
 def bit_law(rop, omega, germ, random, constants, cut, force, torque, lifted, jacobian):
-    """The law at every (rop[i], omega[i]) (m,) into force, torque, lifted (m,) and
+    """
+    The law at every (rop[i], omega[i]) (m,) into force, torque, lifted (m,) and
     jacobian (m, 2, 2); germ (m or 1, 2, 2) is used when ``random``; ``cut``: the lift-off
-    cut (f >= 0: all zero and lifted), else the raw law (lifted False)."""
+    cut (f >= 0: all zero and lifted), else the raw law (lifted False).
+    """
     last = germ.shape[0] - 1
     for i in range(rop.shape[0]):
         g = min(i, last)

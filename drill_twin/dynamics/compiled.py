@@ -1,4 +1,5 @@
-"""The one way the time loop's kernels are compiled: numba, nopython, cached on disk.
+"""
+The one way the time loop's kernels are compiled: numba, nopython, cached on disk.
 
 Every kernel of the loop is decorated with :func:`kernel` (helpers compiled into the
 kernels that call them with :func:`inline`). Compiled code is kept on disk, so only the first

@@ -1,4 +1,5 @@
-"""Impact and rubbing between the string and the borehole wall (Eq. 17-18).
+"""
+Impact and rubbing between the string and the borehole wall (Eq. 17-18).
 
 At every node, with r = sqrt(v^2 + w^2) and the clearance c = R_ch - R_o (the paper's
 (r - R_ch - R_o) read as r - (R_ch - R_o)), a penetration r > c gives the radial force
@@ -30,7 +31,8 @@ class ContactForces:
 def accumulate_contact(displacement_t, theta_x_rate_t, n_nodes, clearance_m, outer_radius_m,
                        stiffness_n_per_m, friction, regularization_rad_per_s, force_t,
                        radial_force_n, in_contact, tangent):
-    """force_t += f_ip; returns the number of (member, node) pairs in contact.
+    """
+    force_t += f_ip; returns the number of (member, node) pairs in contact.
 
     displacement_t, force_t: field-wise DOFs, members last (n_dofs, m); theta_x_rate_t:
     (n_nodes, m). Outputs, members first: radial_force_n (m, n_nodes) (N), in_contact
@@ -77,7 +79,8 @@ def accumulate_contact(displacement_t, theta_x_rate_t, n_nodes, clearance_m, out
 
 def contact_force(system, stiffness_n_per_m: float, friction: float,
                   regularization_rad_per_s: float, fields):
-    """(f_ip on the field-wise DOFs (m, n_dofs), ContactForces, tangent).
+    """
+    (f_ip on the field-wise DOFs (m, n_dofs), ContactForces, tangent).
 
     tangent: (m, n_nodes, 2, 2) stiffness d(-F)/d(v, w) of every node (zero off contact),
     used by the Newton iteration; None when no node of any member touches the wall.

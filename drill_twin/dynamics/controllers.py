@@ -1,4 +1,5 @@
-"""Stick-slip controllers: laws on the top drive's speed set-point (issue 13, docs/DRIVES.md).
+"""
+Stick-slip controllers: laws on the top drive's speed set-point (issue 13, docs/DRIVES.md).
 
 All three act on the set-point of the drive's PI speed loop:
 
@@ -41,8 +42,10 @@ class Stiff:
 
 
 class TorqueFeedback:
-    """omega_sp = omega_ref - HP(T_s) / c, HP(T) = T - LP(T), LP a first-order low-pass of
-    time constant tau (s); c in N m s/rad."""
+    """
+    omega_sp = omega_ref - HP(T_s) / c, HP(T) = T - LP(T), LP a first-order low-pass of
+    time constant tau (s); c in N m s/rad.
+    """
 
     name = 'torque_feedback'
 

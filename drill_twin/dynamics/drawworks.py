@@ -1,6 +1,8 @@
-"""The drawworks: the travelling block moved at a commanded velocity, or by the autodriller
-to hold a WOB set-point, holding the string's top through the drill line (issue 13,
-docs/DRIVES.md).
+"""
+The drawworks.
+
+The travelling block moved at a commanded velocity, or by the autodriller to hold a WOB
+set-point, holding the string's top through the drill line (issue 13, docs/DRIVES.md).
 
 The paper's axial input is a hook force. A rig sets instead the block's motion; the hook load
 is what the line pulls, measured:
@@ -28,8 +30,10 @@ from drill_twin.dynamics.top_drive import NEWMARK_BETA, NEWMARK_GAMMA
 
 
 class TopAxialMotion:
-    """The top's axial displacement and velocity after the coming step as affine functions of
-    the hook load of that step (member 0)."""
+    """
+    The top's axial displacement and velocity after the coming step as affine functions of
+    the hook load of that step (member 0).
+    """
 
     def __init__(self, simulator):
         system = simulator.system
@@ -72,8 +76,11 @@ class TopAxialMotion:
 
 
 class Drawworks:
-    """Block velocity input and autodriller (module docstring). ``before_step`` sets the
-    simulator's hook load for the coming step."""
+    """
+    Block velocity input and autodriller (module docstring).
+
+    ``before_step`` sets the simulator's hook load for the coming step.
+    """
 
     def __init__(self, simulator, config: DrawworksConfig):
         self.simulator = simulator

@@ -1,4 +1,5 @@
-"""The torsional energy budget of the top drive and the string (issue 13, docs/DRIVES.md).
+"""
+The torsional energy budget of the top drive and the string (issue 13, docs/DRIVES.md).
 
 For member 0 of a simulator with a dynamic top drive, step by step:
 

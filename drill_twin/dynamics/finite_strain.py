@@ -1,4 +1,5 @@
-"""f_se: the finite-strain forces beyond [K] + [K_g] (Eq. 14-16).
+"""
+f_se: the finite-strain forces beyond [K] + [K_g] (Eq. 14-16).
 
 f_se = -B^T [dW/dg(g_S + g) - dW/dg(g_S) - H_S g] at every Gauss point: the strain energy's
 force minus its value and tangent at the prestress, which [K] + [K_g] already carry.
@@ -20,7 +21,8 @@ from drill_twin.fem import strain_energy as se
 
 @dataclass(frozen=True)
 class StrainOperators:
-    """The finite-strain data of a reduced system, in the kernel's layout.
+    """
+    The finite-strain data of a reduced system, in the kernel's layout.
 
     strain_pointer, strain_column, strain_value: B in CSR with row 8 p + k for strain k at
     Gauss point p, columns the field-wise DOFs; tangent_pointer (P + 1,) and tangent_row,
@@ -74,8 +76,10 @@ class StrainOperators:
 
 @inline
 def _stress(e, a, b, ky, kz, tau, ty, tz, ea, ei, er4, kga, kgi):
-    """dW/dg at the strains g = (e, a, b, kappa_y, kappa_z, tau, theta_y, theta_z) of a
-    section (EA, EI, ER4, kGA, kGI): fem.strain_energy.stress_components, term by term."""
+    """
+    dW/dg at the strains g = (e, a, b, kappa_y, kappa_z, tau, theta_y, theta_z) of a
+    section (EA, EI, ER4, kGA, kGI): fem.strain_energy.stress_components, term by term.
+    """
     one_e = 1 + e
     p = tau * ty - kz
     q = ky + tau * tz
@@ -114,7 +118,8 @@ def accumulate_finite_strain(displacement_t, strain_pointer, strain_column, stra
                              tangent_pointer, tangent_row, tangent_column, tangent_value,
                              prestress_strain, prestress_stress, section, weight_m,
                              strain, linear, stress, force_t):
-    """force_t += f_se for displacements u (both (n_dofs, m), members last).
+    """
+    force_t += f_se for displacements u (both (n_dofs, m), members last).
 
     strain, linear, stress: work arrays (8, m) (g, H_S g and the weighted stress of a point).
     Small batches run member by member (short vector loops cost more than they save).
@@ -162,8 +167,10 @@ def _accumulate_member(displacement_t, i, strain_pointer, strain_column, strain_
                        tangent_pointer, tangent_row, tangent_column, tangent_value,
                        prestress_strain, prestress_stress, section, weight_m, strain, linear,
                        stress, force_t):
-    """The loop of :func:`accumulate_finite_strain` for member i alone (column i of the work
-    arrays)."""
+    """
+    The loop of :func:`accumulate_finite_strain` for member i alone (column i of the work
+    arrays).
+    """
     for p in range(weight_m.shape[0]):
         for k in range(8):
             row = 8 * p + k
@@ -188,7 +195,8 @@ def _accumulate_member(displacement_t, i, strain_pointer, strain_column, strain_
 
 def finite_strain_force(system, displacement: np.ndarray,
                         operators: StrainOperators | None = None) -> np.ndarray:
-    """f_se on the field-wise DOFs (right-hand side), shape (m, n_dofs).
+    """
+    f_se on the field-wise DOFs (right-hand side), shape (m, n_dofs).
 
     displacement: u from the prestressed state, shape (m, n_dofs). ``operators`` (built from
     ``system`` when not given) are :meth:`StrainOperators.of` the system.

@@ -1,4 +1,5 @@
-"""f_ke: the kinetic coupling of torsion and bending (Eq. 8-11).
+"""
+f_ke: the kinetic coupling of torsion and bending (Eq. 8-11).
 
 The coupling term of the kinetic energy per unit length is taken as
 T_c = -rho I_p theta_x' theta_y theta_z' (dots: time derivatives): the spin component of the
@@ -37,7 +38,8 @@ def _compressed_rows(dense: np.ndarray):
 
 @dataclass(frozen=True)
 class CouplingOperators:
-    """The kinetic-coupling data of a reduced system, in the kernel's layout.
+    """
+    The kinetic-coupling data of a reduced system, in the kernel's layout.
 
     theta_x, theta_y, theta_z: (pointer, column, value) rows giving each rotation at the P
     Gauss points from the torsional field, the bending_z block (w, theta_y) and the
@@ -72,8 +74,10 @@ class CouplingOperators:
 
 @inline
 def _point_forces(scale, rate_x, acc_x, rate_z, acc_z, theta_y, rate_y):
-    """Forces on (theta_x, theta_y, theta_z) of a Gauss point of weight rho I_p w (module
-    docstring)."""
+    """
+    Forces on (theta_x, theta_y, theta_z) of a Gauss point of weight rho I_p w (module
+    docstring).
+    """
     return (scale * (rate_y * rate_z + theta_y * acc_z), -scale * rate_x * rate_z,
             scale * (acc_x * theta_y + rate_x * rate_y))
 
@@ -84,9 +88,13 @@ def accumulate_kinetic_coupling(displacement_t, theta_x_rate_t, theta_x_accelera
                                 x_pointer, x_column, x_value, y_pointer, y_column, y_value,
                                 z_pointer, z_column, z_value, torsion_row, bending_y_row,
                                 bending_z_row, scale, work, force_t):
-    """force_t += f_ke, members last: displacement_t and force_t (n_dofs, m); theta_x rates
-    and accelerations (n_nodes, m); bending rates and accelerations (2 n_nodes, m);
-    work: (9, m). Small batches run member by member."""
+    """
+    force_t += f_ke, members last.
+
+    Displacement_t and force_t (n_dofs, m); theta_x rates and accelerations (n_nodes, m);
+    bending rates and accelerations (2 n_nodes, m); work: (9, m). Small batches run member by
+    member.
+    """
     members = displacement_t.shape[1]
     if members < VECTOR_BATCH:
         for i in range(members):
@@ -161,7 +169,8 @@ def transposed(array) -> np.ndarray:
 
 
 def kinetic_coupling_force(system, fields, operators: CouplingOperators | None = None):
-    """f_ke on the field-wise DOFs, shape (m, n_dofs).
+    """
+    f_ke on the field-wise DOFs, shape (m, n_dofs).
 
     fields: :class:`~drill_twin.dynamics.forces.Kinematics` of the batch; ``operators``
     (built from ``system`` when not given) are :meth:`CouplingOperators.of` the system.

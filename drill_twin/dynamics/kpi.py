@@ -7,7 +7,8 @@ import numpy as np
 
 
 def stick_slip_severity(bit_speed_rad_per_s: np.ndarray, axis: int = -1) -> np.ndarray:
-    """SSI = (omega_max - omega_min) / (2 omega_mean) over ``axis`` (dimensionless).
+    """
+    SSI = (omega_max - omega_min) / (2 omega_mean) over ``axis`` (dimensionless).
 
     Defined only while the bit turns forwards on average (omega_mean > 0): NaN otherwise
     (a stopped or backward-turning bit has no stick-slip severity; never a substitute number).
@@ -26,7 +27,8 @@ def bit_area_m2(bit_diameter_m: float) -> float:
 
 def mechanical_specific_energy(weight_on_bit_n, torque_on_bit_nm, bit_speed_rad_per_s,
                                rop_m_per_s, bit_diameter_m: float, axis: int = -1):
-    """Teale's MSE (Pa) over a window: mean|WOB| / A + mean(|TOB| omega) / (A mean(ROP)).
+    """
+    Teale's MSE (Pa) over a window: mean|WOB| / A + mean(|TOB| omega) / (A mean(ROP)).
 
     Energy spent per volume of rock: the axial work term plus the rotary work per unit of
     penetration. inf when the bit does not advance on average (mean ROP <= 0): no rock is

@@ -1,5 +1,8 @@
-"""Linear stability of steady drilling: the axial-torsional reduced model linearised about
-the steady state the bit-rock law gives at (Omega, WOB).
+"""
+Linear stability of steady drilling.
+
+The axial-torsional reduced model linearised about the steady state the bit-rock law gives at
+(Omega, WOB).
 
 About a straight string the linear model does not couple the lateral motion to the axial and
 torsional motion, and wall contact is inactive, so the perturbation dq of the axial and
@@ -40,7 +43,8 @@ from drill_twin.dynamics.steady_drilling import SteadyDrilling
 
 @dataclass(frozen=True)
 class LinearStability:
-    """The least-stable eigenvalue of the linearised axial-torsional model.
+    """
+    The least-stable eigenvalue of the linearised axial-torsional model.
 
     growth_rate_per_s: its real part (1/s, > 0 unstable); frequency_hz: |imaginary part| / 2 pi;
     stable: growth_rate_per_s < 0; eigenvalues: all of them, least stable first (1/s).

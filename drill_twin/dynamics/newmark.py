@@ -1,4 +1,5 @@
-"""Implicit Newmark (average acceleration) on the reduced model, for a batch of members.
+"""
+Implicit Newmark (average acceleration) on the reduced model, for a batch of members.
 
 Each step solves, for the accelerations a = q''(t + dt) of every member,
 
@@ -68,7 +69,8 @@ ON_BOTTOM_TOLERANCE_M = 1e-6
 
 @dataclass
 class BatchState:
-    """The state of m members at time ``time_s``.
+    """
+    The state of m members at time ``time_s``.
 
     q, q_rate, q_acceleration: reduced coordinates and derivatives, shape (m, n).
     top_angle_rad, top_speed_rad_per_s, top_acceleration_rad_per_s2: the driven rotation
@@ -105,7 +107,8 @@ class BatchState:
 
 @dataclass(frozen=True)
 class StepResult:
-    """Outcome of one step: success unless a member diverged or did not converge.
+    """
+    Outcome of one step: success unless a member diverged or did not converge.
 
     converged, finite: per member (m,); iterations: used; error: final relative velocity
     increment per member; message: why it failed ('' on success); forces: the forces of the
@@ -149,7 +152,8 @@ class _BitSolution:
 
 
 class NewmarkIntegrator:
-    """Average-acceleration Newmark with a cached S0^-1 and an exact bit solve.
+    """
+    Average-acceleration Newmark with a cached S0^-1 and an exact bit solve.
 
     Args:
         forces: the non-linear forces of a reduced system.
@@ -246,9 +250,11 @@ class NewmarkIntegrator:
     def initial_state(self, q: np.ndarray, q_rate: np.ndarray, top_speed_rad_per_s: float,
                       hook_load_n: float, top_angle_rad: float = 0.0,
                       hole_u: np.ndarray | None = None) -> BatchState:
-        """A state at t = 0 with the accelerations that balance Eq. 35 (fixed point).
+        """
+        A state at t = 0 with the accelerations that balance Eq. 35 (fixed point).
 
-        hole_u: the hole bottom (m,), or None to put it where the bit is (on bottom)."""
+        hole_u: the hole bottom (m,), or None to put it where the bit is (on bottom).
+        """
         state = BatchState(0.0, np.array(q, dtype=float), np.array(q_rate, dtype=float),
                            np.zeros_like(q, dtype=float), top_angle_rad,
                            top_speed_rad_per_s, 0.0, hook_load_n)
@@ -264,8 +270,12 @@ class NewmarkIntegrator:
         return state
 
     def evaluate(self, state: BatchState) -> ForceEvaluation:
-        """f_NL at a state, with the bit-rock law of Eq. 25 at its velocities when the bit is
-        on bottom (and no rock force when it is off bottom)."""
+        """
+        f_NL at a state.
+
+        With the bit-rock law of Eq. 25 at its velocities when the bit is on bottom (and no
+        rock force when it is off bottom).
+        """
         fields = Kinematics.of(self.system, state.q, state.q_rate, state.q_acceleration,
                                state.top_speed_rad_per_s, state.top_acceleration_rad_per_s2)
         evaluation = self._forces_without_bit.evaluate(fields, self.germ)
@@ -320,7 +330,8 @@ class NewmarkIntegrator:
     # -- one step ------------------------------------------------------------------------
     def step(self, state: BatchState, top_speed_rad_per_s: float,
              hook_load_n: float) -> tuple[BatchState, StepResult]:
-        """Advance ``state`` by dt with the top speed and hook load given for t + dt.
+        """
+        Advance ``state`` by dt with the top speed and hook load given for t + dt.
 
         Returns the new state and the step's outcome; on failure the new state holds the
         last iterate (callers must not continue from it silently). The arithmetic runs in
@@ -433,8 +444,10 @@ class NewmarkIntegrator:
             self._before_step = None
 
     def forget(self, members) -> None:
-        """Drop the contraction-rate history of ``members`` (indices; None: of everyone), so
-        that their next step verifies its first iterate."""
+        """
+        Drop the contraction-rate history of ``members`` (indices; None: of everyone), so
+        that their next step verifies its first iterate.
+        """
         if members is None:
             self._rate = self._steps_since_verified = self._active = None
         elif self._rate is not None:
@@ -474,10 +487,13 @@ class NewmarkIntegrator:
 
 
 def _diagonal_blocks(damping, inverse, groups):
-    """([C_r] blocks (4,), row groups (4, 2), S0^-1 blocks (4,)) as the step kernel takes
-    them: the diagonal blocks on the coordinate groups of Phi's blocks when
-    [C_r] and S0^-1 have nothing outside them (the fields do not couple linearly), else the
-    whole matrices as one group."""
+    """
+    ([C_r] blocks (4,), row groups (4, 2), S0^-1 blocks (4,)) as the step kernel takes them.
+
+    The diagonal blocks on the coordinate groups of Phi's blocks when [C_r] and S0^-1 have
+    nothing outside them (the fields do not couple linearly), else the whole matrices as one
+    group.
+    """
     outside = np.ones(damping.shape, dtype=bool)
     for start, stop in groups:
         outside[start:stop, start:stop] = False
@@ -496,10 +512,12 @@ def _diagonal_blocks(damping, inverse, groups):
 
 
 class _FinalEvaluation:
-    """The arrays of a step's final evaluation (new for every step: the caller keeps them),
+    """
+    The arrays of a step's final evaluation (new for every step: the caller keeps them),
     in the order :func:`newmark_kernel.update` takes them: full (n_dofs, m), modal (n, m),
     radial, contact (m, n_nodes), tangent (m, n_nodes, 2, 2); the bit's rop, omega, force,
-    torque, lifted (m,), jacobian (m, 2, 2), solved (m,)."""
+    torque, lifted (m,), jacobian (m, 2, 2), solved (m,).
+    """
 
     def __init__(self, n_dofs: int, n: int, nodes: int, members: int):
         self.full = np.empty((n_dofs, members))

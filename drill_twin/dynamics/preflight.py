@@ -1,4 +1,5 @@
-"""Pre-flight check: refuse a configuration the model cannot represent, before a run starts.
+"""
+Pre-flight check: refuse a configuration the model cannot represent, before a run starts.
 
 Three stages, each a few hundred milliseconds at most:
 
@@ -61,7 +62,8 @@ by the steady torque first) and cheap (a fraction of a second)."""
 
 
 class PreflightError(ValueError):
-    """A configuration the model cannot represent or integrate.
+    """
+    A configuration the model cannot represent or integrate.
 
     ``key``: the configuration key to blame ('' for the configuration as a whole);
     ``related``: further keys a user may have changed to cause it (for attributing the
@@ -77,7 +79,8 @@ class PreflightError(ValueError):
 
 @dataclass(frozen=True)
 class OperatingPoint:
-    """The steady state the configuration asks for (SI units, forces positive downwards).
+    """
+    The steady state the configuration asks for (SI units, forces positive downwards).
 
     speed_rad_per_s: top-drive (= steady bit) speed; weight_on_bit_n: f_bit (< 0 in
     compression); hook_load_n: H; string_weight_n: the hook load at which the bit just
@@ -97,8 +100,10 @@ class OperatingPoint:
 
 @dataclass(frozen=True)
 class PreflightResult:
-    """The model built during the check, for the run to reuse, and the operating point
-    (None without the bit-rock law)."""
+    """
+    The model built during the check, for the run to reuse, and the operating point
+    (None without the bit-rock law).
+    """
 
     model: FiniteElementModel
     basis: ReducedBasis
@@ -116,9 +121,12 @@ def preflight(config: DrillStringConfig, short_run_s: float = SHORT_RUN_S) -> Pr
 
 
 def build_model(config: DrillStringConfig, reduced_system: bool = True):
-    """(model, basis, reduced system or None) of ``config``; a numerical failure is a
-    :class:`PreflightError` naming it. Overflow, invalid and divide-by-zero operations
-    raise instead of warning (underflow is harmless and allowed)."""
+    """
+    (model, basis, reduced system or None) of ``config``.
+
+    A numerical failure is a :class:`PreflightError` naming it. Overflow, invalid and
+    divide-by-zero operations raise instead of warning (underflow is harmless and allowed).
+    """
     try:
         with np.errstate(over='raise', invalid='raise', divide='raise'):
             model, _, basis = modal_analysis(config)
@@ -131,8 +139,11 @@ def build_model(config: DrillStringConfig, reduced_system: bool = True):
 
 
 def torque_capacity_nm(config: DrillStringConfig) -> float:
-    """The largest torque every section carries: SHEAR_STRAIN_LIMIT G J / r_o of the weakest,
-    with J = pi (D_o^4 - D_i^4) / 32 (N m)."""
+    """
+    The largest torque every section carries.
+
+    SHEAR_STRAIN_LIMIT G J / r_o of the weakest, with J = pi (D_o^4 - D_i^4) / 32 (N m).
+    """
     capacities = []
     for section in config.sections:
         polar = math.pi * (section.outer_diameter_m ** 4 - section.inner_diameter_m ** 4) / 32
@@ -206,8 +217,12 @@ def check_operating_point(config: DrillStringConfig,
 
 def check_short_run(config: DrillStringConfig, system: ReducedSystem,
                     duration_s: float = SHORT_RUN_S) -> None:
-    """Integrate ``duration_s`` of the mean model; raise :class:`PreflightError` if it
-    diverges or the bit leaves the plausible range (ROP, bit speed)."""
+    """
+    Integrate ``duration_s`` of the mean model.
+
+    Raise :class:`PreflightError` if it diverges or the bit leaves the plausible range (ROP, bit
+    speed).
+    """
     simulator = Simulator(config, system=system)
     steps = max(1, math.ceil(duration_s / simulator.dt - 1e-9))
     with threadpool_limits(limits=1, user_api='blas'):          # small matrices (see run.py)

@@ -1,4 +1,5 @@
-"""The reduced model of Eq. 35 and every operator the time loop needs, precomputed once.
+"""
+The reduced model of Eq. 35 and every operator the time loop needs, precomputed once.
 
 The displacement from the prestressed state is u = [Phi] q + psi theta_top(t): q holds the
 amplitudes of the basis columns (the rigid axial mode, which carries the penetration, and the
@@ -34,7 +35,8 @@ _GROUP_FIELDS = {'axial': (0,), 'torsional': (1,), 'bending_y': (2, 3), 'bending
 
 @dataclass(frozen=True)
 class Block:
-    """A group of reduced coordinates and the fields they move.
+    """
+    A group of reduced coordinates and the fields they move.
 
     columns: slice of the reduced coordinates; rows: slice of the field-wise DOFs;
     shapes: that block of [Phi], (rows, columns); shapes_t: its transpose.
@@ -48,8 +50,12 @@ class Block:
 
 @dataclass(frozen=True)
 class Station:
-    """A measurement point at depth x (m): interpolation rows of the six fields
-    (u, v, w, theta_x, theta_y, theta_z) on the field-wise DOFs, shape (6, n_dofs)."""
+    """
+    A measurement point at depth x (m).
+
+    Interpolation rows of the six fields (u, v, w, theta_x, theta_y, theta_z) on the field-wise
+    DOFs, shape (6, n_dofs).
+    """
 
     x_m: float
     rows: np.ndarray
@@ -57,7 +63,8 @@ class Station:
 
 @dataclass(frozen=True)
 class ReducedSystem:
-    """Precomputed reduced matrices and operators (SI units; see the module docstring).
+    """
+    Precomputed reduced matrices and operators (SI units; see the module docstring).
 
     Attributes:
         model, basis: the finite-element model and the reduced basis.

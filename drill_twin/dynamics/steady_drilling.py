@@ -1,5 +1,7 @@
-"""Steady drilling at a top-drive speed and a weight on bit: the bit-rock law's state and the
-reduced coordinates that carry it.
+"""
+Steady drilling at a top-drive speed and a weight on bit.
+
+The bit-rock law's state and the reduced coordinates that carry it.
 
 In steady drilling the bit turns with the top drive (omega = Omega), advances at the ROP the
 bit-rock law gives at (Omega, f_bit) (Eq. 24, regularised), the string is twisted by the
@@ -27,7 +29,8 @@ from drill_twin.dynamics.reduced_system import ReducedSystem
 
 @dataclass(frozen=True)
 class SteadyDrilling:
-    """The bit-rock law at steady drilling (SI units).
+    """
+    The bit-rock law at steady drilling (SI units).
 
     top_speed_rad_per_s: Omega (= the bit speed); weight_on_bit_n: WOB, > 0 in compression;
     rop_m_per_s: the law's ROP at (Omega, -WOB) (negative: the law cannot drill there);
@@ -69,10 +72,13 @@ def hook_load_for(system: ReducedSystem, weight_on_bit_n: float) -> float:
 
 def under_hook_load(system: ReducedSystem, law: BitRockLaw, top_speed_rad_per_s: float,
                     hook_load_n: float, iterations: int = 4) -> SteadyDrilling:
-    """Steady drilling at the hook load H, with the drag of the descending string: the rigid
-    axial mode's balance b_r (f_bit - f_c) = C_rr ROP / b_r + h_r (H - H_S) (b_r, h_r its
-    values at the bit and the top) solved with the law's ROP(f_bit) by fixed point (the
-    drag changes f_bit by a few newtons, ROP by 1e-7 m/s)."""
+    """
+    Steady drilling at the hook load H, with the drag of the descending string.
+
+    The rigid axial mode's balance b_r (f_bit - f_c) = C_rr ROP / b_r + h_r (H - H_S) (b_r, h_r
+    its values at the bit and the top) solved with the law's ROP(f_bit) by fixed point (the drag
+    changes f_bit by a few newtons, ROP by 1e-7 m/s).
+    """
     wob = string_weight_n(system) - float(hook_load_n)
     steady = SteadyDrilling.of(law, top_speed_rad_per_s, wob)
     axial = system.blocks['axial']
@@ -92,7 +98,8 @@ def under_hook_load(system: ReducedSystem, law: BitRockLaw, top_speed_rad_per_s:
 
 def steady_coordinates(system: ReducedSystem, steady: SteadyDrilling, hook_load_n: float,
                        q: np.ndarray, q_rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Reduced coordinates (m, n) and rates of steady drilling, from ``q``, ``q_rate``.
+    """
+    Reduced coordinates (m, n) and rates of steady drilling, from ``q``, ``q_rate``.
 
     The axial and torsional blocks are replaced (the bending blocks are kept): the rigid
     axial mode moves at the steady ROP, the elastic axial modes carry the static change of

@@ -1,4 +1,5 @@
-"""Compile, or load from the cache, every kernel of the time loop once.
+"""
+Compile, or load from the cache, every kernel of the time loop once.
 
     python -m drill_twin.dynamics.warm_up
 
@@ -14,8 +15,10 @@ import time
 
 
 def warm_up(steps: int = 3) -> float:
-    """Step the default string as a mean model and as a batch of random members, off and on
-    the wall; returns the wall time it took (s)."""
+    """
+    Step the default string as a mean model and as a batch of random members, off and on
+    the wall; returns the wall time it took (s).
+    """
     from drill_twin.config.loader import load_config
     from drill_twin.dynamics.simulator import Simulator
     from drill_twin.uncertainty.germ import germs_for_realizations

@@ -12,7 +12,8 @@ _LATERAL = {'clamped': (dofs.V, dofs.W, dofs.THETA_Y, dofs.THETA_Z),
 
 
 def constrained_dofs(boundary: Boundary, n_nodes: int) -> np.ndarray:
-    """Sorted global indices of the DOFs held at zero.
+    """
+    Sorted global indices of the DOFs held at zero.
 
     The top rotation is held when ``top_torsion`` is ``driven``: the imposed rotation is
     then carried by a separate rigid-rotation shape, not by the free DOFs.

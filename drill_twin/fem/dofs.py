@@ -1,4 +1,5 @@
-"""Degree-of-freedom numbering: 6 per node, ordered as in the paper (Eq. 5).
+"""
+Degree-of-freedom numbering: 6 per node, ordered as in the paper (Eq. 5).
 
 Node n owns global DOFs 6 n + (u, v, theta_z, w, theta_y, theta_x). Element e joins nodes
 e and e + 1; its 12 local DOFs are those of node e followed by those of node e + 1.

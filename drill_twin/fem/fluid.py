@@ -1,4 +1,5 @@
-"""Drilling-fluid forces (Eq. 19-23): added mass, stiffness, damping and axial force.
+"""
+Drilling-fluid forces (Eq. 19-23): added mass, stiffness, damping and axial force.
 
 Inside the string the flow is inviscid; in the annulus it is viscous. The volume flow
 Q = u_in A_i(top) goes down the string and up the annulus; pressures vary linearly in x
@@ -26,7 +27,8 @@ from drill_twin.fem.quadrature import ElementQuadrature
 
 @dataclass(frozen=True)
 class FlowField:
-    """Flow quantities; arrays are per element unless stated (SI units).
+    """
+    Flow quantities; arrays are per element unless stated (SI units).
 
     inner_area_m2 A_i, outer_area_m2 A_o, outer_diameter_m D_o, annulus_area_m2,
     inner_speed_m_per_s U_i, annulus_speed_m_per_s U_o, chi, inner_fluid_mass_kg_per_m M_f,

@@ -11,7 +11,8 @@ from drill_twin.fem.dofs import DOFS_PER_NODE, element_dof_map
 
 @dataclass(frozen=True)
 class Mesh:
-    """Nodes, elements and cross-section properties; arrays are per element unless stated.
+    """
+    Nodes, elements and cross-section properties; arrays are per element unless stated.
 
     Attributes:
         node_x_m: node positions along the axis, down from the top, shape (n_nodes,).

@@ -23,7 +23,8 @@ from drill_twin.fem.quadrature import ElementQuadrature, build_quadrature
 
 @dataclass(frozen=True)
 class FiniteElementModel:
-    """All matrices of Eq. 30 on the full DOF set (n_dofs = 6 n_nodes), SI units.
+    """
+    All matrices of Eq. 30 on the full DOF set (n_dofs = 6 n_nodes), SI units.
 
     Attributes:
         mass: [M] (with the lumped bit), fluid_mass: [M_f];

@@ -13,7 +13,8 @@ from drill_twin.fem.mesh import Mesh
 
 @dataclass(frozen=True)
 class Prestress:
-    """The prestressed configuration.
+    """
+    The prestressed configuration.
 
     Attributes:
         displacement_m: u_S, shape (n_dofs,) (axial entries only; m).
@@ -64,7 +65,8 @@ def solve_prestress(mesh: Mesh, stiffness: sp.csr_matrix, load: np.ndarray,
 
 
 def neutral_point_above_bit(mesh: Mesh, axial_force_n: np.ndarray) -> float | None:
-    """Height above the bit where N changes from compression (below) to tension (above).
+    """
+    Height above the bit where N changes from compression (below) to tension (above).
 
     N is exact at element midpoints for a linear element with consistent loads; it is
     interpolated linearly between them (and extrapolated over the last half element).

@@ -12,7 +12,8 @@ from drill_twin.fem.mesh import Mesh
 
 @dataclass(frozen=True)
 class ElementQuadrature:
-    """Quadrature data of all elements.
+    """
+    Quadrature data of all elements.
 
     Attributes:
         xi: local coordinates of the points, shape (n_points,).

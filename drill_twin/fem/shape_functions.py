@@ -1,4 +1,5 @@
-"""Shape functions of the two-node Timoshenko element (paper Appendix A).
+"""
+Shape functions of the two-node Timoshenko element (paper Appendix A).
 
 Axial displacement u and torsion theta_x are linear; the lateral fields use the
 shear-corrected cubic functions with phi = 12 E I / (k_s G A l_e^2). ``w`` and
@@ -28,7 +29,8 @@ def gauss_legendre_unit(n: int = GAUSS_POINTS) -> tuple[np.ndarray, np.ndarray]:
 
 @dataclass(frozen=True)
 class FieldRows:
-    """Interpolation rows: field f at point p of element e is ``value[e, p, f] @ u_e``.
+    """
+    Interpolation rows: field f at point p of element e is ``value[e, p, f] @ u_e``.
 
     value, slope: shape (n_elements, n_points, 6, 12); slope is d/dx (1/m).
     """
@@ -38,7 +40,8 @@ class FieldRows:
 
 
 def field_rows(xi: np.ndarray, length_m: np.ndarray, phi: np.ndarray) -> FieldRows:
-    """Rows of the six fields and of their x-derivatives at local coordinates ``xi``.
+    """
+    Rows of the six fields and of their x-derivatives at local coordinates ``xi``.
 
     Args:
         xi: local coordinates in [0, 1], shape (n_points,).

@@ -1,4 +1,5 @@
-"""Strain energy per unit length of the finite-strain Timoshenko beam (Eq. 12-16).
+"""
+Strain energy per unit length of the finite-strain Timoshenko beam (Eq. 12-16).
 
 Kinematics. A material point (y, z) of the cross-section moves by (Eq. 15, see below)
 
@@ -51,7 +52,8 @@ _COMPLEX_STEP = 1e-30
 
 @dataclass(frozen=True)
 class SectionStiffness:
-    """Section constants (broadcastable arrays).
+    """
+    Section constants (broadcastable arrays).
 
     EA (N), EI (N m^2), ER4 (N m^4), kGA (N), kGI (N m^2).
     """
@@ -109,9 +111,12 @@ def stress_resultants(g: np.ndarray, s: SectionStiffness) -> np.ndarray:
 
 
 def stress_components(g, s: SectionStiffness):
-    """dW/dg component by component: ``g`` is a sequence of 8 arrays (e, a, b, kappa_y,
-    kappa_z, tau, theta_y, theta_z) broadcastable with the section constants; returns the 8
-    components (contiguous arrays make this several times faster than a strided last axis).
+    """
+    dW/dg component by component.
+
+    ``g`` is a sequence of 8 arrays (e, a, b, kappa_y, kappa_z, tau, theta_y, theta_z)
+    broadcastable with the section constants; returns the 8 components (contiguous arrays make
+    this several times faster than a strided last axis).
     """
     e, a, b, ky, kz, tau, ty, tz = g
     one_e = 1 + e

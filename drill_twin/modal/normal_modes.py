@@ -15,7 +15,8 @@ MODE_TYPES = ('axial', 'torsional', 'lateral')
 
 @dataclass(frozen=True)
 class NormalModes:
-    """All modes of ([K] + [K_f] + [K_g]) phi = omega^2 ([M] + [M_f]) phi, ascending.
+    """
+    All modes of ([K] + [K_f] + [K_g]) phi = omega^2 ([M] + [M_f]) phi, ascending.
 
     Attributes:
         eigenvalue: omega^2 (rad^2/s^2), shape (n_modes,).
@@ -59,7 +60,8 @@ def _groups_are_uncoupled(matrix, groups) -> bool:
 
 
 def solve_normal_modes(model: FiniteElementModel) -> NormalModes:
-    """Solve Eq. 32 on the free DOFs with a dense symmetric solver (a few hundred DOFs).
+    """
+    Solve Eq. 32 on the free DOFs with a dense symmetric solver (a few hundred DOFs).
 
     The linearised, prestressed string does not couple axial, torsional and the two planes
     of bending motion: when the matrices confirm it, each group is solved on its own, so

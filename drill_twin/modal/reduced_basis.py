@@ -12,7 +12,8 @@ from drill_twin.modal.normal_modes import NormalModes
 
 @dataclass(frozen=True)
 class ReducedBasis:
-    """Columns of [Phi]: the rigid modes first, then the kept modes by frequency.
+    """
+    Columns of [Phi]: the rigid modes first, then the kept modes by frequency.
 
     Attributes:
         shapes: [Phi], shape (n_dofs, n_basis); mass-normalised.
@@ -72,8 +73,11 @@ def select_basis(model: FiniteElementModel, modes: NormalModes,
 
 @dataclass(frozen=True)
 class ReducedMatrices:
-    """[M_r], [C_r], [K_r] of Eq. 36 (dense, n_basis x n_basis) and the couplings of the
-    driven rotation psi: mass_driven = Phi^T (M + M_f) psi, damping_driven = Phi^T (C + C_f) psi.
+    """
+    [M_r], [C_r], [K_r] of Eq. 36 and the couplings of the driven rotation psi.
+
+    The matrices are dense, n_basis x n_basis; the couplings: mass_driven =
+    Phi^T (M + M_f) psi, damping_driven = Phi^T (C + C_f) psi.
     """
 
     mass: np.ndarray

@@ -1,4 +1,5 @@
-"""Figures of a run: time histories over the stationary window and their spectra.
+"""
+Figures of a run: time histories over the stationary window and their spectra.
 
 Spectra are one-sided amplitude spectra of the mean-removed signal (a sinusoid of amplitude A
 shows a peak A), drawn on a log scale up to 2 Hz as in the paper.
@@ -33,8 +34,10 @@ def spectrum(signal: np.ndarray, time_step_s: float) -> tuple[np.ndarray, np.nda
 
 def plot_run(result: SimulationResult, path: str | Path, window_s: float,
              clearance_m: float | None = None, member: int = 0) -> Path:
-    """Time histories and spectra of ROP, bit speed, WOB, TOB and the radial displacement at
-    the first station (the paper's Figs. 8-11 for the mean model)."""
+    """
+    Time histories and spectra of ROP, bit speed, WOB, TOB and the radial displacement at
+    the first station (the paper's Figs. 8-11 for the mean model).
+    """
     mask = result.window(window_s)
     t = result.time_s[mask]
     dt = float(np.median(np.diff(result.time_s)))

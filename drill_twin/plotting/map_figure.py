@@ -1,4 +1,5 @@
-"""The stick-slip map figure: stick-slip severity over top-drive speed x weight on bit.
+"""
+The stick-slip map figure: stick-slip severity over top-drive speed x weight on bit.
 
 Cells are coloured by the SSI of the simulated points; the contours SSI = 0.5 and 1 separate
 no stick-slip / stick-slip / full stick (the bit stops); points where the bit turned

@@ -32,7 +32,8 @@ STATION_FIELDS = ('axial', 'v', 'w')
 
 @dataclass
 class SimulationResult:
-    """A recorded run of m members.
+    """
+    A recorded run of m members.
 
     time_s: (n_t,). channels: name -> (m, n_t) (see BIT_CHANNELS, plus 'contact_nodes' and
     'max_contact_force_n'); shared: name -> (n_t,); stations_m: (n_s,);

@@ -1,4 +1,5 @@
-"""Result files that numpy and pandas users open directly: CSV and NPZ with named columns.
+"""
+Result files that numpy and pandas users open directly: CSV and NPZ with named columns.
 
 One row per recorded instant of one member. Column names carry their units; COLUMNS
 describes each (docs/OUTPUTS.md prints the same table). Station columns are named after the
@@ -79,8 +80,10 @@ def columns(result: SimulationResult, member: int = 0) -> dict[str, np.ndarray]:
 
 def write_results(result: SimulationResult, path: str | Path, member: int = 0,
                   metadata: dict | None = None) -> Path:
-    """Write one member's record as ``.csv`` (header row) or ``.npz`` (named arrays plus a
-    ``metadata`` JSON string); the extension chooses."""
+    """
+    Write one member's record as ``.csv`` (header row) or ``.npz`` (named arrays plus a
+    ``metadata`` JSON string); the extension chooses.
+    """
     path = Path(path)
     data = columns(result, member)
     if path.suffix == '.csv':

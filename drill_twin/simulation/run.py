@@ -20,7 +20,8 @@ def run_simulation(config: DrillStringConfig, duration_s: float, *, members: int
                    germs: np.ndarray | None = None, system: ReducedSystem | None = None,
                    record_interval_s: float | None = None,
                    progress: Progress | None = None) -> SimulationResult:
-    """Simulate ``duration_s`` seconds and return the recorded history.
+    """
+    Simulate ``duration_s`` seconds and return the recorded history.
 
     BLAS is kept to one thread: the matrices of the time loop are small and threads cost
     more in synchronisation than they save (measured on this 2-core machine: a 64 x 166

@@ -1,4 +1,5 @@
-"""The stick-slip map: the mean model over a grid of top-drive speed x weight on bit.
+"""
+The stick-slip map: the mean model over a grid of top-drive speed x weight on bit.
 
 Every point is an independent run of the mean model (one task for an executor of
 :mod:`drill_twin.uncertainty.executors`) at its top-drive speed Omega and its static weight on
@@ -141,7 +142,8 @@ class MapSpec:
 
 @dataclass
 class MapResult:
-    """The rows of a map in grid order, and the linear stability on a fine grid.
+    """
+    The rows of a map in grid order, and the linear stability on a fine grid.
 
     rows: one dict per point (keys: COLUMNS, plus 'index'); boundary_speeds_rad_per_s (n_s,),
     boundary_weights_on_bit_n (n_w,), boundary_growth_rate_per_s and
@@ -208,9 +210,12 @@ def run_point(config_json: str, spec: MapSpec, index: int) -> dict:
 
 
 def _perturbation(system, spec: MapSpec, index: int) -> np.ndarray:
-    """Torsional rates (n_t,) that change the bit speed by about the spec's perturbation:
-    the first torsional mode, or a random direction of the seed's stream (seed, index)
-    with the same kinetic energy."""
+    """
+    Torsional rates (n_t,) that change the bit speed by about the spec's perturbation.
+
+    The first torsional mode, or a random direction of the seed's stream (seed, index) with the
+    same kinetic energy.
+    """
     torsion = system.blocks['torsional']
     at_bit = torsion.shapes[system.bit_node]
     rates = np.zeros(at_bit.size)
@@ -271,8 +276,11 @@ def _integrate(config, system, spec: MapSpec, steady, hook: float,
 
 
 def oscillation_frequency(signal: np.ndarray, dt: float) -> float:
-    """Frequency (Hz) of a signal from its upward crossings of its mean, interpolated
-    linearly: (crossings - 1) / (last - first crossing time); NaN with fewer than two."""
+    """
+    Frequency (Hz) of a signal from its upward crossings of its mean, interpolated linearly.
+
+    (crossings - 1) / (last - first crossing time); NaN with fewer than two.
+    """
     centred = np.asarray(signal, dtype=float) - np.mean(signal)
     up = np.flatnonzero((centred[:-1] < 0) & (centred[1:] >= 0))
     if up.size < 2:
@@ -314,11 +322,14 @@ def run_map(config: DrillStringConfig, spec: MapSpec, executor,
 
 def compare_with_linear_stability(severity: np.ndarray, stable: np.ndarray,
                                   failed: np.ndarray) -> np.ndarray:
-    """Per grid point (n_wob, n_speed): 'agree' when a linearly stable point is steady
-    (SSI < SSI_STEADY) or an unstable one oscillates (SSI >= SSI_STEADY), 'disagree'
-    otherwise, 'near_boundary' when a grid neighbour (one step in speed or WOB) is on the
-    other side of the linear stability boundary, 'failed' for failed points. Arrays are on
-    the map's grid, both axes increasing (MapSpec sorts them)."""
+    """
+    Per grid point (n_wob, n_speed).
+
+    'agree' when a linearly stable point is steady (SSI < SSI_STEADY) or an unstable one
+    oscillates (SSI >= SSI_STEADY), 'disagree' otherwise, 'near_boundary' when a grid neighbour
+    (one step in speed or WOB) is on the other side of the linear stability boundary, 'failed'
+    for failed points. Arrays are on the map's grid, both axes increasing (MapSpec sorts them).
+    """
     out = np.empty(stable.shape, dtype=object)
     rows, columns = stable.shape
     for i in range(rows):

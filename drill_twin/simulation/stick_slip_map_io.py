@@ -1,4 +1,5 @@
-"""The files of a stick-slip map (docs/MAP.md describes them).
+"""
+The files of a stick-slip map (docs/MAP.md describes them).
 
 - map.csv: one row per grid point (WOB-major), the columns of
   :data:`drill_twin.simulation.stick_slip_map.COLUMNS` in that order, with a header row.

@@ -1,5 +1,8 @@
-"""The twin's online ensemble: N realizations of the random bit-rock law, stepped as a batch
-beside the mean model, in this process or in a worker process of its own.
+"""
+The twin's online ensemble.
+
+N realizations of the random bit-rock law, stepped as a batch beside the mean model, in this
+process or in a worker process of its own.
 
 The engine hands the ensemble each tick's work with :meth:`start` (steps and the commands in
 force) and picks the result up with :meth:`collect` at the start of the next tick, so that a
@@ -48,9 +51,13 @@ WORKER_REPLY_TIMEOUT_S = 60.0
 
 @dataclass(frozen=True)
 class EnsembleSettings:
-    """The online ensemble: ``members`` random realizations of dispersion ``dispersion``
-    drawn from the stream ``seed``; ``separate_process``: integrate them in a worker process
-    (a second core) instead of this one."""
+    """
+    The online ensemble.
+
+    ``members`` random realizations of dispersion ``dispersion`` drawn from the stream ``seed``;
+    ``separate_process``: integrate them in a worker process (a second core) instead of this
+    one.
+    """
 
     members: int = 16
     dispersion: float = 0.01
@@ -71,7 +78,8 @@ class EnsembleFailed(RuntimeError):
 
 @dataclass(frozen=True)
 class EnsembleResult:
-    """The ensemble after a tick.
+    """
+    The ensemble after a tick.
 
     step: model steps taken; time_s: its time (s); bit: shape (N, 6), columns BIT_FIELDS (SI);
     touching_wall, lifted_off: how many members touch the borehole wall or have their bit
@@ -144,7 +152,8 @@ class LocalEnsemble:
 
 
 class EnsembleProcess:
-    """The ensemble integrated in a worker process, one tick ahead of ``collect``.
+    """
+    The ensemble integrated in a worker process, one tick ahead of ``collect``.
 
     The worker is ``python -m drill_twin.twin.ensemble_worker`` (a fresh interpreter: nothing
     of this process, its main module or its ROS context is inherited) talking over a socket

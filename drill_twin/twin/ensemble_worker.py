@@ -1,4 +1,5 @@
-"""The online ensemble's worker process: ``python -m drill_twin.twin.ensemble_worker FD``.
+"""
+The online ensemble's worker process: ``python -m drill_twin.twin.ensemble_worker FD``.
 
 Started by :class:`~drill_twin.twin.ensemble.EnsembleProcess` with its end of a socket pair
 as file descriptor FD; receives the configuration, the ensemble settings and the reduced

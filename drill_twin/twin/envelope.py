@@ -1,4 +1,5 @@
-"""What the string can plausibly do: scales derived from the configuration, ROS-free.
+"""
+What the string can plausibly do: scales derived from the configuration, ROS-free.
 
 The twin refuses commands the model cannot represent (the command door, :mod:`.engine`) and
 checks every step against physics (:mod:`.guard`) with the same numbers, all derived here
@@ -47,7 +48,8 @@ ENVELOPE_TOP_DRIVE_SPEED_MAX_RAD_PER_S = 30.0
 
 @dataclass(frozen=True)
 class StringEnvelope:
-    """Scales of the string as built (SI units; see the module docstring).
+    """
+    Scales of the string as built (SI units; see the module docstring).
 
     string_weight_n: W, the hook load at WOB = 0 (N); string_mass_kg: the rigid axial mass
     e^T (M + M_f) e (kg); axial_drag_n_s_per_m: C; bha_weight_n: the BHA's weight (N; the
@@ -119,11 +121,14 @@ def _kn(newton: float) -> str:
 
 
 def _bha_weight(model, weight_n: float) -> float:
-    """Weight of the sections below the lowest drill pipe (N), as the model counts it: the
-    axial force at the top of the BHA with the bit just touching (WOB = 0). The force N_0 =
+    """
+    Weight of the sections below the lowest drill pipe (N), as the model counts it.
+
+    The axial force at the top of the BHA with the bit just touching (WOB = 0). The force N_0 =
     N_S - f_c is linear in each element (consistent loads) and exact at the midpoints; it is
     extrapolated to the top of the BHA from its two uppermost elements. A string whose bottom
-    section is drill pipe has no BHA: the whole weight counts."""
+    section is drill pipe has no BHA: the whole weight counts.
+    """
     config, mesh = model.config, model.mesh
     kinds = [section.kind for section in config.sections]
     if kinds[-1] == 'drill_pipe' or 'drill_pipe' not in kinds:
@@ -144,9 +149,12 @@ def _bha_weight(model, weight_n: float) -> float:
 
 def largest_torque_on_bit_nm(law: BitRockLaw, top_speed_max_rad_per_s: float,
                              weight_on_bit_max_n: float) -> float:
-    """The largest |TOB| of the bit-rock law over the envelope (N m): bit speeds 0 ... the
-    top speed, at the steady ROP of the largest WOB, the ROP capped at the block speed (a
-    law whose ROP exceeds it is itself implausible and is caught on the ROP)."""
+    """
+    The largest |TOB| of the bit-rock law over the envelope (N m).
+
+    Bit speeds 0 ... the top speed, at the steady ROP of the largest WOB, the ROP capped at the
+    block speed (a law whose ROP exceeds it is itself implausible and is caught on the ROP).
+    """
     omega = np.linspace(0.01, max(top_speed_max_rad_per_s, 0.01), 400)
     rop = np.clip(law.steady_rop(omega, -weight_on_bit_max_n), 0.0,
                   PLAUSIBLE_BLOCK_SPEED_M_PER_S)

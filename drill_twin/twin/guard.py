@@ -1,4 +1,5 @@
-"""The state guard: every step of every member checked against physics, ROS-free.
+"""
+The state guard: every step of every member checked against physics, ROS-free.
 
 A step the integrator accepts can still be nonsense: a hook load far above the string's
 weight flings the string out of the hole, a bit-rock law with absurd constants spins the bit
@@ -46,7 +47,8 @@ TORQUE_FLOOR_NM = 1.0e3
 
 
 class StateGuard:
-    """Bounds of one string's members (see the module docstring).
+    """
+    Bounds of one string's members (see the module docstring).
 
     Args:
         system: the reduced system the simulator steps.
@@ -186,9 +188,12 @@ class StateGuard:
                 f'clearance plus contact penetration ({self.lateral_max_m[node]:.3g} m)')
 
     def _hole_depth(self, simulator, depth):
-        """The hole's depth per member (m): the simulator's, or the deepest plausible bit
-        position so far (today's model drills wherever the bit is: the hole is where the bit
-        has been deepest)."""
+        """
+        The hole's depth per member (m).
+
+        The simulator's, or the deepest plausible bit position so far (today's model drills
+        wherever the bit is: the hole is where the bit has been deepest).
+        """
         hole = getattr(simulator, 'hole_depth_m', None)
         if hole is not None:
             return np.broadcast_to(np.asarray(hole, dtype=float), depth.shape)

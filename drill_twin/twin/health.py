@@ -1,4 +1,5 @@
-"""The twin's health: what went wrong since the last report, ROS-free.
+"""
+The twin's health: what went wrong since the last report, ROS-free.
 
 :class:`HealthMonitor` collects what the twin's parts report between two health reports
 (failed and implausible mean-model steps, member resets, sub-step retries, rejected, dropped
@@ -41,7 +42,8 @@ COUNTERS = {
 
 @dataclass(frozen=True)
 class HealthReport:
-    """One health report.
+    """
+    One health report.
 
     level: 'ok', 'warn' or 'error'; message: 'running' or every reason, '; '-separated;
     reasons: the reasons one by one; values: figures for the DiagnosticStatus key-values
@@ -64,8 +66,11 @@ class HealthMonitor:
         self._details: dict[str, str] = {}
 
     def note(self, level: str, key: str, text: str) -> None:
-        """A problem of this period: per key, the worst level with its text (the latest
-        text among notes of that level)."""
+        """
+        A problem of this period.
+
+        Per key, the worst level with its text (the latest text among notes of that level).
+        """
         previous = self._notes.get(key)
         if previous is not None and _rank(previous[0]) > _rank(level):
             return
@@ -76,8 +81,12 @@ class HealthMonitor:
         self._details[counter] = text
 
     def observe_events(self, events) -> None:
-        """Twin events of a tick: a lost ensemble is a problem of its own; the last reason
-        of an implausible mean-model step or a rejected command becomes a detail."""
+        """
+        Twin events of a tick.
+
+        A lost ensemble is a problem of its own; the last reason of an implausible mean-model
+        step or a rejected command becomes a detail.
+        """
         for event in events:
             if event.kind == 'ensemble_failed':
                 self.note(event.level, 'ensemble_failed', event.message)
@@ -87,8 +96,12 @@ class HealthMonitor:
                 self.detail('rejected_commands', event.message)
 
     def report(self, counters: dict, values: dict) -> HealthReport:
-        """The report of this period: ``counters`` are the cumulative counts (COUNTERS'
-        keys; missing ones count 0), ``values`` the figures to show."""
+        """
+        The report of this period.
+
+        ``counters`` are the cumulative counts (COUNTERS' keys; missing ones count 0),
+        ``values`` the figures to show.
+        """
         for name, (level, template) in COUNTERS.items():
             count = int(counters.get(name, 0))
             new = count - self._reported.get(name, 0)

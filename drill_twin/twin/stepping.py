@@ -1,4 +1,5 @@
-"""Stepping a batch that may diverge or break physics: restart the failed members, go on.
+"""
+Stepping a batch that may diverge or break physics: restart the failed members, go on.
 
 The twin must never stop its clock or publish a failed or implausible step.
 :class:`GuardedSimulator` wraps a :class:`~drill_twin.dynamics.simulator.Simulator`:
@@ -26,8 +27,11 @@ from drill_twin.twin.guard import StateGuard
 
 
 class TwinStalled(RuntimeError):
-    """The model failed MAX_CONSECUTIVE_FAILURES steps in a row, even from a safe state: the
-    configuration cannot be integrated (the clock would otherwise stand still)."""
+    """
+    The model failed MAX_CONSECUTIVE_FAILURES steps in a row, even from a safe state.
+
+    The configuration cannot be integrated (the clock would otherwise stand still).
+    """
 
 
 MAX_CONSECUTIVE_FAILURES = 100
@@ -36,7 +40,8 @@ MAX_CONSECUTIVE_FAILURES = 100
 
 @dataclass(frozen=True)
 class TwinEvent:
-    """Something the rig should hear about.
+    """
+    Something the rig should hear about.
 
     kind: 'impact' (a node touches the wall), 'contact_end', 'lift_off', 'landing',
     'diverged' (a member was reset after a failed step), 'implausible' (a member broke a
@@ -52,7 +57,8 @@ class TwinEvent:
 
 
 class GuardedSimulator:
-    """A simulator whose failed or implausible steps restart the members concerned.
+    """
+    A simulator whose failed or implausible steps restart the members concerned.
 
     Args:
         simulator: the batch.
@@ -116,8 +122,10 @@ class GuardedSimulator:
             {'members': ' '.join(map(str, numbers)), 'time_s': f'{error.time_s:.6g}'}))
 
     def _contain(self, reasons: dict[int, str], before) -> None:
-        """Put the members that broke a bound back to their last good state and restart
-        them from a safe state there (or keep the last good state if that breaks too)."""
+        """
+        Put the members that broke a bound back to their last good state and restart
+        them from a safe state there (or keep the last good state if that breaks too).
+        """
         breached = np.zeros(self.simulator.members, dtype=bool)
         breached[list(reasons)] = True
         self._consecutive_breaches = np.where(breached, self._consecutive_breaches + 1, 0)

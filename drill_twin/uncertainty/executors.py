@@ -1,4 +1,5 @@
-"""Where the chunks of a study run: this process, local processes, or a Dask cluster.
+"""
+Where the chunks of a study run: this process, local processes, or a Dask cluster.
 
 Every executor yields the results of ``function(*arguments)`` for each argument tuple, in
 completion order; the study sorts them by realization index, so the results do not depend
@@ -28,8 +29,10 @@ def _worker_environment():
 
 
 class SerialExecutor:
-    """Run every chunk in this process, one after the other (agrees with the others to
-    rounding: this process's BLAS was set up before the study)."""
+    """
+    Run every chunk in this process, one after the other (agrees with the others to
+    rounding: this process's BLAS was set up before the study).
+    """
 
     workers = 1
 
@@ -81,8 +84,10 @@ class DaskExecutor:
 
 
 def make_executor(workers: int | None, scheduler: str | None):
-    """Dask if a scheduler address is given, else ``workers`` local processes (default: one
-    per core; even one worker runs in its own process, for identical BLAS set-up)."""
+    """
+    Dask if a scheduler address is given, else ``workers`` local processes (default: one
+    per core; even one worker runs in its own process, for identical BLAS set-up).
+    """
     if scheduler:
         return DaskExecutor(scheduler)
     return LocalProcessExecutor(max(1, workers or multiprocessing.cpu_count()))

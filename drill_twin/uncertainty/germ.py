@@ -1,4 +1,5 @@
-"""The random germ [G_b] of the non-parametric bit-rock law (paper Sect. 3, Appendix B).
+"""
+The random germ [G_b] of the non-parametric bit-rock law (paper Sect. 3, Appendix B).
 
 [G_b] is a random symmetric positive-definite 2 x 2 matrix with E{[G_b]} = [I] and
 dispersion delta = (1/2 E{||[G_b] - [I]||_F^2})^(1/2) (Eq. 45), distributed with the
@@ -59,7 +60,8 @@ def validate_dispersion(dispersion: float) -> float:
 
 
 def gamma_shapes(dispersion: float) -> np.ndarray:
-    """Shapes (n + 1)/(2 delta^2) + (1 - j)/2, j = 1..n, of the diagonal Gamma draws.
+    """
+    Shapes (n + 1)/(2 delta^2) + (1 - j)/2, j = 1..n, of the diagonal Gamma draws.
 
     Args:
         dispersion: delta, 0 < delta < MAX_DISPERSION.
@@ -72,7 +74,8 @@ def gamma_shapes(dispersion: float) -> np.ndarray:
 
 
 def sample_germ(dispersion: float, rng: np.random.Generator, size: int) -> np.ndarray:
-    """Draw `size` independent realizations of [G_b] with the Appendix B generator.
+    """
+    Draw `size` independent realizations of [G_b] with the Appendix B generator.
 
     The stream is consumed in a fixed order: the (size, n(n-1)/2) standard normals of the
     strictly upper part of [L_G] first, then the (size, n) Gamma variables of its diagonal.
@@ -105,7 +108,8 @@ def sample_germ(dispersion: float, rng: np.random.Generator, size: int) -> np.nd
 
 
 def realization_generator(seed: int, index: int) -> np.random.Generator:
-    """Return the random stream of realization `index` of a study seeded with `seed`.
+    """
+    Return the random stream of realization `index` of a study seeded with `seed`.
 
     The stream is PCG64 seeded by numpy.random.SeedSequence(seed, spawn_key=(index,)),
     i.e. the `index`-th child of SeedSequence(seed).spawn(...). It depends only on
@@ -128,7 +132,8 @@ def realization_generator(seed: int, index: int) -> np.random.Generator:
 
 
 def germs_for_realizations(dispersion: float, seed: int, indices: Sequence[int]) -> np.ndarray:
-    """Draw the germ of each listed realization, the first draw of its own stream.
+    """
+    Draw the germ of each listed realization, the first draw of its own stream.
 
     Args:
         dispersion: delta, dimensionless, 0 <= delta < MAX_DISPERSION.
@@ -147,7 +152,8 @@ def germs_for_realizations(dispersion: float, seed: int, indices: Sequence[int])
 
 
 def dispersion_of(samples: np.ndarray) -> float:
-    """Estimate delta = sqrt(1/n mean ||G - I||_F^2) of Eq. 45 (1/n = 1/2 for n = 2).
+    """
+    Estimate delta = sqrt(1/n mean ||G - I||_F^2) of Eq. 45 (1/n = 1/2 for n = 2).
 
     Args:
         samples: shape (n_samples, n, n).

@@ -1,4 +1,5 @@
-"""Monte Carlo study of the random bit-rock law (paper Sect. 3-4, Eq. 51-54).
+"""
+Monte Carlo study of the random bit-rock law (paper Sect. 3-4, Eq. 51-54).
 
 Realizations are integrated in fixed chunks of ``batch_size`` consecutive indices; realization
 j of a study with seed s gets the germ drawn from its own stream (seed, j). A chunk is computed
@@ -42,7 +43,8 @@ LARGEST_BATCH = 64
 
 
 def default_batch_size(samples: int, workers: int) -> int:
-    """Chunks of equal size, a multiple of ``workers`` of them, none above LARGEST_BATCH.
+    """
+    Chunks of equal size, a multiple of ``workers`` of them, none above LARGEST_BATCH.
 
     Every worker then gets the same work (the first chunk's extra member, the mean model,
     costs a fraction of a member). The results depend on the batch size only by rounding;
@@ -87,7 +89,8 @@ class StudySpec:
 
 @dataclass
 class ChunkResult:
-    """What a chunk of realizations returns (arrays per realization on the first axis).
+    """
+    What a chunk of realizations returns (arrays per realization on the first axis).
 
     indices: (k,); time_s: the window's instants (n_w,); series: quantity -> (k, n_w);
     norm_integral: integral of ||U||^2 dt over the run, (k,); impacts, lift_offs: counted
@@ -121,7 +124,8 @@ def _system_for(config_json: str):
 
 def run_chunk(config_json: str, spec: StudySpec, indices: tuple[int, ...],
               mean_model: bool = False) -> ChunkResult:
-    """Integrate the realizations ``indices`` (and the mean model as one more member when
+    """
+    Integrate the realizations ``indices`` (and the mean model as one more member when
     ``mean_model``) for the study's duration.
 
     ``config_json`` is the configuration as a JSON mapping (it travels to other processes).
@@ -176,8 +180,12 @@ def _empty(config, spec) -> ChunkResult:
 
 
 def _integrate(config, system, spec: StudySpec, indices, germs, leading: int) -> ChunkResult:
-    """Integrate the batch of ``germs``; members ``leading:`` are the realizations
-    ``indices`` (member 0 is the mean model when ``leading`` is 1)."""
+    """
+    Integrate the batch of ``germs``.
+
+    Members ``leading:`` are the realizations ``indices`` (member 0 is the mean model when
+    ``leading`` is 1).
+    """
     members = germs.shape[0]
     simulator = Simulator(config, members=members, germs=germs, system=system)
     station = _station_index(system, spec.station_m)

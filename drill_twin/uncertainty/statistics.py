@@ -1,4 +1,5 @@
-"""Monte Carlo statistics of the stochastic response (paper Sect. 4.1-4.2).
+"""
+Monte Carlo statistics of the stochastic response (paper Sect. 4.1-4.2).
 
 Conventions: realizations on the first axis, time on the last axis, uniform time step,
 SI units; arrays are (n_realizations, ..., n_time). The caller selects the stationary
@@ -29,7 +30,8 @@ def _positive_step(time_step_s: float) -> float:
 
 
 def envelope(samples: np.ndarray, lower: float = 0.025, upper: float = 0.975) -> Envelope:
-    """Mean and the [lower, upper] quantile envelope over realizations (method of quantiles).
+    """
+    Mean and the [lower, upper] quantile envelope over realizations (method of quantiles).
 
     Quantiles are the empirical ones of numpy.quantile ('linear' interpolation between
     order statistics); with the defaults the band has probability level 0.95.
@@ -52,7 +54,8 @@ def envelope(samples: np.ndarray, lower: float = 0.025, upper: float = 0.975) ->
 def fourier_modulus(
         signal: np.ndarray, time_step_s: float, window: np.ndarray | None = None,
         scaling: str = 'transform') -> tuple[np.ndarray, np.ndarray]:
-    """One-sided modulus of the Fourier transform of uniformly sampled signals.
+    """
+    One-sided modulus of the Fourier transform of uniformly sampled signals.
 
     With X_k = sum_m w_m x_m exp(-2 i pi k m / N) (numpy.fft.rfft, k = 0..N//2, frequency
     f_k = k / (N dt)) and the window w normalised to unit mean:
@@ -103,7 +106,8 @@ def spectral_envelope(
         samples: np.ndarray, time_step_s: float, lower: float = 0.025, upper: float = 0.975,
         window: np.ndarray | None = None,
         scaling: str = 'transform') -> tuple[np.ndarray, Envelope]:
-    """Mean and quantile envelope, over realizations, of the Fourier modulus.
+    """
+    Mean and quantile envelope, over realizations, of the Fourier modulus.
 
     The modulus is computed per realization (fourier_modulus) and the statistics taken
     frequency by frequency, as in the paper's spectra (Fig. 8b, 13b).
@@ -123,7 +127,8 @@ def spectral_envelope(
 
 
 def coefficient_of_variation(values: np.ndarray, axis: int = 0, ddof: int = 1) -> np.ndarray:
-    """Compute std / |mean| along `axis` (sample std with `ddof`; 1 = unbiased variance).
+    """
+    Compute std / |mean| along `axis` (sample std with `ddof`; 1 = unbiased variance).
 
     Where the mean is 0 the result is inf (nan if the std is 0 too); no warning is issued.
 
@@ -141,7 +146,8 @@ def coefficient_of_variation(values: np.ndarray, axis: int = 0, ddof: int = 1) -
 
 
 def coefficient_of_variation_of_time_average(samples: np.ndarray, ddof: int = 1) -> np.ndarray:
-    """Coefficient of variation across realizations of their time averages.
+    """
+    Coefficient of variation across realizations of their time averages.
 
     Each realization is first averaged over time (all samples weighted equally), then
     std/|mean| is taken across realizations: the dispersion of a per-realization mean
@@ -159,7 +165,8 @@ def coefficient_of_variation_of_time_average(samples: np.ndarray, ddof: int = 1)
 
 
 def coefficient_of_variation_per_instant(samples: np.ndarray, ddof: int = 1) -> np.ndarray:
-    """Coefficient of variation across realizations at each instant, std_s X / |mean_s X|.
+    """
+    Coefficient of variation across realizations at each instant, std_s X / |mean_s X|.
 
     This is the paper's "for each time t, the coefficients of variation of WOB and TOB are
     ~5e-3" (Sect. 4.2).
@@ -176,7 +183,8 @@ def coefficient_of_variation_per_instant(samples: np.ndarray, ddof: int = 1) -> 
 
 def mean_coefficient_of_variation_per_instant(
         samples: np.ndarray, ddof: int = 1) -> np.ndarray:
-    """Time average over the window of coefficient_of_variation_per_instant.
+    """
+    Time average over the window of coefficient_of_variation_per_instant.
 
     Args:
         samples: shape (n_realizations, ..., n_time), the stationary window only.
@@ -189,7 +197,8 @@ def mean_coefficient_of_variation_per_instant(
 
 
 def time_integral_of_squared_norm(u: np.ndarray, time_step_s: float) -> np.ndarray:
-    """int_0^t_f ||u(t)||^2 dt by the trapezoid rule, ||.|| the Euclidean norm over components.
+    """
+    int_0^t_f ||u(t)||^2 dt by the trapezoid rule, ||.|| the Euclidean norm over components.
 
     Args:
         u: shape (..., n_components, n_time), e.g. (n_realizations, n_dofs, n_time).
@@ -206,7 +215,8 @@ def time_integral_of_squared_norm(u: np.ndarray, time_step_s: float) -> np.ndarr
 
 
 def mean_square_convergence(response_norm_sq_integrals: np.ndarray) -> np.ndarray:
-    """conv(n_s) = 1/n_s sum_{j <= n_s} int ||U(t, s_j)||^2 dt (Eq. 54), for n_s = 1..N.
+    """
+    conv(n_s) = 1/n_s sum_{j <= n_s} int ||U(t, s_j)||^2 dt (Eq. 54), for n_s = 1..N.
 
     Args:
         response_norm_sq_integrals: shape (N, ...), the integral of each realization in

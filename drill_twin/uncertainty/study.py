@@ -19,7 +19,8 @@ COV_KEYS = {'rop': 'rop_m_per_s', 'weight_on_bit': 'weight_on_bit_n',
 
 @dataclass
 class StudyResult:
-    """The realizations of a study, in index order, and the mean model.
+    """
+    The realizations of a study, in index order, and the mean model.
 
     time_s: window instants (n_w,); indices: completed realizations (n,); realizations:
     quantity -> (n, n_w); mean_model: quantity -> (n_w,); norm_integral, impacts, lift_offs,
@@ -66,8 +67,10 @@ class StudyResult:
         return {q: statistics.envelope(self.realizations[q]) for q in QUANTITIES}
 
     def spectra(self):
-        """(frequency_hz, quantity -> (mean-model spectrum, Envelope)) of the mean-removed
-        window signals (one-sided amplitude spectra)."""
+        """
+        (frequency_hz, quantity -> (mean-model spectrum, Envelope)) of the mean-removed
+        window signals (one-sided amplitude spectra).
+        """
         out = {}
         frequency = None
         for q in QUANTITIES:
@@ -84,7 +87,8 @@ def _spectrum(signals, dt):
 
 def run_study(config: DrillStringConfig, spec: StudySpec, executor,
               progress: Callable[[int, int], None] | None = None) -> StudyResult:
-    """Run the mean model and every chunk of ``spec`` on ``executor``.
+    """
+    Run the mean model and every chunk of ``spec`` on ``executor``.
 
     progress(done, total) counts runs: the mean model and the realizations. The mean model is
     integrated with the first chunk (montecarlo module docstring).

@@ -1,4 +1,5 @@
-"""The files of a Monte Carlo study (docs/MONTECARLO.md describes them).
+"""
+The files of a Monte Carlo study (docs/MONTECARLO.md describes them).
 
 - summary.json: the study's parameters and seed, coefficients of variation over the
   stationary window, event counts, failures and timing.
