@@ -55,5 +55,6 @@ def snapshot(t: float, *, stations: int = 2, events=(), depth0: float = 1600.0,
 
 
 def impact(t: float) -> TwinEvent:
-    return TwinEvent('impact', 'warn', t, f'borehole impact at x = 700.0 m, force 2.5e+03 N',
+    return TwinEvent('impact', 'warn', t,
+                     f'borehole impact at x = 700.0 m, force 2.5e+03 N',  # noqa: F541
                      {'x_m': '700.000'})

@@ -22,8 +22,6 @@ def run_cli(*args, cwd):
                           stdin=subprocess.DEVNULL)
 
 
-
-
 @pytest.mark.parametrize('kind', ['binary', 'directory'])
 def test_a_config_that_is_not_a_text_file(tmp_path, kind):
     path = tmp_path / 'config.yaml'

@@ -35,8 +35,6 @@ def run_twin(*args, env, cwd):
                           env=env, cwd=cwd, timeout=300, stdin=subprocess.DEVNULL)
 
 
-
-
 # -- parameters, through the command -----------------------------------------------------------
 
 @pytest.mark.parametrize('args, words', [

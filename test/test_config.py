@@ -53,7 +53,8 @@ def test_configuration_is_frozen(default_config):
 
 def test_partial_file_overrides_only_its_keys(tmp_path, default_config):
     path = tmp_path / 'mine.yaml'
-    path.write_text('fluid:\n  density_kg_per_m3: 1500\ndamping:\n  mass_coefficient_per_s: 2e-2\n')
+    path.write_text(
+        'fluid:\n  density_kg_per_m3: 1500\ndamping:\n  mass_coefficient_per_s: 2e-2\n')
     config = load_config(path)
     assert config.fluid.density_kg_per_m3 == 1500.0
     assert config.damping.mass_coefficient_per_s == 0.02
@@ -157,7 +158,8 @@ def _run_cli(*args):
 
 
 @pytest.mark.parametrize('content, expected', [
-    ('fluid:\n  density_kg_per_m3: -5\n', 'bad.yaml: fluid.density_kg_per_m3: must be a finite positive'),
+    ('fluid:\n  density_kg_per_m3: -5\n',
+     'bad.yaml: fluid.density_kg_per_m3: must be a finite positive'),
     ('fluid: [1, 2\n', 'bad.yaml: line 2: YAML syntax error'),
     ('- just\n- a list\n', 'bad.yaml: the file must hold a mapping'),
     ('sections:\n  - name: x\n', 'bad.yaml: sections.x.kind: missing key'),

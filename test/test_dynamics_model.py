@@ -35,7 +35,8 @@ def _energy(system, q, q_rate):
     u = fields.displacement
     g = (system.strain_operator @ u.T).reshape(se.N_STRAINS, system.n_gauss, -1).transpose(2, 1, 0)
     g_s = system.prestress_strain
-    remainder = (se.energy_density(g_s + g, system.section) - se.energy_density(g_s, system.section)
+    remainder = (se.energy_density(g_s + g, system.section)
+                 - se.energy_density(g_s, system.section)
                  - np.einsum('pk,mpk->mp', system.prestress_stress, g)
                  - 0.5 * np.einsum('mpk,pkl,mpl->mp', g, system.prestress_tangent, g))
     nonlinear = np.sum(system.gauss_weight_m * remainder, axis=1)
@@ -150,7 +151,8 @@ def test_stationary_weight_on_bit_is_the_hook_load_balance(paper_run):
     late = result.time_s >= 40.0
     wob = np.mean(result.channels['weight_on_bit_n'][0, late])
     rop = np.mean(result.channels['rop_m_per_s'][0, late])
-    expected = config.bit_rock.static_weight_on_bit_n + config.damping.mass_coefficient_per_s * mass * rop
+    expected = (config.bit_rock.static_weight_on_bit_n
+                + config.damping.mass_coefficient_per_s * mass * rop)
     assert wob == pytest.approx(expected, abs=20.0)
     assert 1e-3 < rop < 3e-3                               # the paper's 1-3 mm/s
 

@@ -289,4 +289,3 @@ def test_random_command_sequences_inside_the_envelope(system, dt, delta, seed, c
     run = EnvelopeRun(simulator)
     for speed, wob_100kn, seconds in commands:
         run.hold(seconds, speed=speed, hook=_wob_hook(simulator, 1e5 * wob_100kn))
-

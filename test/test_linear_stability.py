@@ -36,7 +36,7 @@ def one_mode():
 
 
 def test_without_the_bit_every_mode_has_its_rayleigh_damping():
-    """J = 0.
+    """Without the bit (J = 0) every mode has its Rayleigh damping.
 
     Each elastic mode (pulsation w from the modal solver) has the roots of s^2 + (alpha + beta
     w^2) s + w^2; the rigid axial mode's rate decays at alpha.

@@ -43,7 +43,8 @@ def installed_prefix(tmp_path_factory):
 
 
 def _installed_location():
-    result = subprocess.run([sys.executable, '-c', 'import drill_twin; print(drill_twin.__file__)'],
+    result = subprocess.run([sys.executable, '-c',
+                             'import drill_twin; print(drill_twin.__file__)'],
                             capture_output=True, text=True, cwd='/', timeout=60)
     return result.stdout.strip()
 

@@ -19,13 +19,13 @@ from drill_twin.dynamics.reduced_system import build_reduced_system
 
 
 def test_default_operating_point_is_the_law_and_the_weight_in_air(default_config,
-                                                                   default_analysis):
+                                                                  default_analysis):
     model = default_analysis[0]
     point = check_operating_point(default_config, model)
     # The string's weight as the model counts it (MODEL.md: weight in air, no net buoyancy):
     # sum of rho A L g over the sections.
     weight = sum(s.density_kg_per_m3 * math.pi / 4 * (s.outer_diameter_m ** 2
-                                                       - s.inner_diameter_m ** 2)
+                                                      - s.inner_diameter_m ** 2)
                  * s.length_m * default_config.gravity_m_per_s2 for s in default_config.sections)
     assert point.string_weight_n == pytest.approx(weight, rel=1e-3)
     assert point.weight_on_bit_n == default_config.bit_rock.static_weight_on_bit_n
@@ -114,4 +114,3 @@ def test_the_check_imports_no_ros():
     code = ('import sys, drill_twin.dynamics.preflight; '
             'sys.exit(1 if "rclpy" in sys.modules else 0)')
     assert subprocess.run([sys.executable, '-c', code]).returncode == 0
-

@@ -153,7 +153,7 @@ def test_linear_part_is_the_timoshenko_beam():
 
 
 def test_geometric_stiffness_terms_of_an_axial_prestress():
-    """MODEL.md point 3.
+    """Geometric stiffness of an axial prestress N = EA e0 (MODEL.md point 3).
 
     3N on u' and the bending rotations, N on v'^2 and w'^2, N I_p/A on theta_x'^2 (N = EA e0),
     to first order in the prestrain e0.

@@ -225,10 +225,10 @@ def test_energy_balance_over_a_stick_slip_cycle():
 
 
 def test_the_simulator_attaches_the_configured_drive_and_a_failed_step_is_undone():
-    """Built from a config with ``top_drive.mode.
+    """Built from a config with ``top_drive.mode: dynamic`` the simulator drives the dynamic drive.
 
-    Dynamic`` the simulator drives its top with the dynamic drive; the speed set back after a
-    failed step restores the drive's state.
+    The simulator drives its top with the dynamic drive; the speed set back after a failed step
+    restores the drive's state.
     """
     simulator = Simulator(load_config(overrides=LINEAR + ['reduced_basis.torsional_modes=2']))
     drive = simulator.top_drive

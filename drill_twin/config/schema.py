@@ -548,7 +548,8 @@ class DrillStringConfig:
                 if section.inner_diameter_m <= 0:
                     raise ConfigValueError(
                         f'sections.{section.name}.inner_diameter_m',
-                        'a solid section cannot carry the mud flow (fluid.inlet_speed_m_per_s > 0)')
+                        'a solid section cannot carry the mud flow '
+                        '(fluid.inlet_speed_m_per_s > 0)')
         clearance = max((hole - s.outer_diameter_m) / 2 for s in self.sections)
         if self.physics.contact and self.initial_conditions.lateral_deflection_m > clearance:
             raise ConfigValueError(

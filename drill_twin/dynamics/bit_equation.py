@@ -265,10 +265,10 @@ def _illinois_start(lo, hi, r_lo, r_hi, tolerance, relative, residual_tolerance)
 @inline
 def _illinois_trial(lo, hi, r_lo, r_hi, count, reference):
     """
-    The next point.
+    Next point of the Illinois iteration as (trial, bisect, count, reference).
 
     Regula falsi, or a bisection when the secant point is not inside the bracket or the bracket
-    has not halved in BISECT_AFTER steps. (trial, bisect, count, reference).
+    has not halved in BISECT_AFTER steps.
     """
     width = hi - lo
     count += 1

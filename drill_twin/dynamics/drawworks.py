@@ -150,4 +150,3 @@ def line_hook_load_n(drawworks: Drawworks) -> float:
     return max(drawworks.top.static_hook_load_n
                + drawworks.line_stiffness * (u - drawworks.block_position_m)
                + drawworks.line_damping * (v - drawworks.block_velocity_m_per_s), 0.0)
-

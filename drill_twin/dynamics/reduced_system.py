@@ -237,7 +237,8 @@ def build_reduced_system(model: FiniteElementModel, basis: ReducedBasis) -> Redu
         return np.ascontiguousarray(operator[:, rows].toarray())
 
     prestress_tangent = se.tangent_stiffness(prestress_strain, section)
-    tangent_blocks = sp.bmat([[sp.diags(prestress_tangent[:, k, l]) for l in range(se.N_STRAINS)]
+    tangent_blocks = sp.bmat([[sp.diags(prestress_tangent[:, k, l])  # noqa: E741
+                               for l in range(se.N_STRAINS)]  # noqa: E741
                               for k in range(se.N_STRAINS)]).tocsr()
     theta_x = rotation_rows(sf.FIELD_THETA_X, 'torsional')
     theta_y = rotation_rows(sf.FIELD_THETA_Y, 'bending_z')

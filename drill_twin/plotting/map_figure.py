@@ -56,8 +56,9 @@ def plot_map(result: MapResult, path: str | Path) -> Path:
                                          '(2 omega_mean)')
     handles = []
     if speeds.size > 1 and weights.size > 1 and finite.size:
-        lines = axes.contour(speeds, weights * kn, np.ma.masked_invalid(ssi), levels=[SSI_STICK_SLIP, SSI_FULL_STICK],
-                             colors=['cyan', 'red'], linewidths=1.6)
+        lines = axes.contour(speeds, weights * kn, np.ma.masked_invalid(ssi),
+                             levels=[SSI_STICK_SLIP, SSI_FULL_STICK], colors=['cyan', 'red'],
+                             linewidths=1.6)
         axes.clabel(lines, fmt={SSI_STICK_SLIP: 'stick-slip', SSI_FULL_STICK: 'full stick'},
                     fontsize=8)
         handles += [Line2D([], [], color='cyan', lw=1.6,

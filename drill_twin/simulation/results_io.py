@@ -41,7 +41,8 @@ COLUMNS = {
 STATION_COLUMNS = {
     'u_m': 'axial displacement (m)', 'v_m': 'lateral displacement v, along y (m)',
     'w_m': 'lateral displacement w, along z (m)', 'radial_m': 'radial position sqrt(v^2+w^2) (m)',
-    'v_rate_m_per_s': 'lateral velocity dv/dt (m/s)', 'w_rate_m_per_s': 'lateral velocity dw/dt (m/s)',
+    'v_rate_m_per_s': 'lateral velocity dv/dt (m/s)',
+    'w_rate_m_per_s': 'lateral velocity dw/dt (m/s)',
     'v_acceleration_m_per_s2': 'lateral acceleration (m/s^2)',
     'w_acceleration_m_per_s2': 'lateral acceleration (m/s^2)',
     'axial_acceleration_m_per_s2': 'axial acceleration (m/s^2)',

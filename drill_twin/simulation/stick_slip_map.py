@@ -323,7 +323,7 @@ def run_map(config: DrillStringConfig, spec: MapSpec, executor,
 def compare_with_linear_stability(severity: np.ndarray, stable: np.ndarray,
                                   failed: np.ndarray) -> np.ndarray:
     """
-    Per grid point (n_wob, n_speed).
+    Compare the map with the linear stability boundary, per grid point (n_wob, n_speed).
 
     'agree' when a linearly stable point is steady (SSI < SSI_STEADY) or an unstable one
     oscillates (SSI >= SSI_STEADY), 'disagree' otherwise, 'near_boundary' when a grid neighbour

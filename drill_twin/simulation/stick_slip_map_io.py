@@ -70,8 +70,8 @@ def read_map(directory: str | Path) -> MapResult:
     directory = Path(directory)
     info = json.loads((directory / 'map.json').read_text())
     spec = MapSpec(**{key: info[key] for key in ('speeds_rad_per_s', 'weights_on_bit_n',
-                                                  'duration_s', 'window_s', 'start', 'seed',
-                                                  'perturbation_rad_per_s')})
+                                                 'duration_s', 'window_s', 'start', 'seed',
+                                                 'perturbation_rad_per_s')})
     with open(directory / 'map.csv', newline='') as stream:
         rows = [{name: _value(name, text) for name, text in row.items()}
                 for row in csv.DictReader(stream)]
