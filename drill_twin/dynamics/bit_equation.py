@@ -70,16 +70,14 @@ def solve_bit_equation(law: BitRockLaw, b, c, rho, germ=None, omega_guess=None):
     """
     Solve the module's equation for m members.
 
-    Args:
-        law: the bit-rock law.
-        b: (m, 2) bit velocities (ROP m/s, omega rad/s) with no rock force.
-        c: (m, 2) positive flexibilities over the step ((m/s)/N, (rad/s)/(N m)).
-        rho: (m,) ROP at which the bit reaches the hole bottom at the end of the step (>= 0).
-        germ: (m, 2, 2) random germs or None (mean law).
-        omega_guess: (m,) a start for omega (the iterate's), or None.
+    :param law: the bit-rock law.
+    :param b: (m, 2) bit velocities (ROP m/s, omega rad/s) with no rock force.
+    :param c: (m, 2) positive flexibilities over the step ((m/s)/N, (rad/s)/(N m)).
+    :param rho: (m,) ROP at which the bit reaches the hole bottom at the end of the step (>= 0).
+    :param germ: (m, 2, 2) random germs or None (mean law).
+    :param omega_guess: (m,) a start for omega (the iterate's), or None.
 
-    Returns:
-        (rop, omega, force, torque, lifted, on_bottom, cutting), arrays of shape (m,): lifted
+    :return: (rop, omega, force, torque, lifted, on_bottom, cutting), arrays of shape (m,): lifted
         when the rock's axial force is zero.
     """
     b = np.ascontiguousarray(b, dtype=float)

@@ -155,12 +155,11 @@ class NewmarkIntegrator:
     """
     Average-acceleration Newmark with a cached S0^-1 and an exact bit solve.
 
-    Args:
-        forces: the non-linear forces of a reduced system.
-        time_step_s: dt (s).
-        tolerance: relative velocity increment that ends the iteration.
-        max_iterations: iteration cap per step.
-        germ: (m, 2, 2) random germs of the bit-rock law, or None for the mean model.
+    :param forces: the non-linear forces of a reduced system.
+    :param time_step_s: dt (s).
+    :param tolerance: relative velocity increment that ends the iteration.
+    :param max_iterations: iteration cap per step.
+    :param germ: (m, 2, 2) random germs of the bit-rock law, or None for the mean model.
     """
 
     def __init__(self, forces: NonlinearForces, time_step_s: float, tolerance: float,

@@ -66,7 +66,7 @@ class ReducedSystem:
     """
     Precomputed reduced matrices and operators (SI units; see the module docstring).
 
-    Attributes:
+    Fields:
         model, basis: the finite-element model and the reduced basis.
         basis_columns: for each reduced coordinate, its column in ``basis`` (ranks, types).
         mass, damping, stiffness: [M_r], [C_r], [K_r] in the loop's order, (n, n).

@@ -14,7 +14,7 @@ class Mesh:
     """
     Nodes, elements and cross-section properties; arrays are per element unless stated.
 
-    Attributes:
+    Fields:
         node_x_m: node positions along the axis, down from the top, shape (n_nodes,).
         length_m: element lengths l_e.
         section_index: index into ``config.sections`` of each element.

@@ -26,7 +26,7 @@ class FiniteElementModel:
     """
     All matrices of Eq. 30 on the full DOF set (n_dofs = 6 n_nodes), SI units.
 
-    Attributes:
+    Fields:
         mass: [M] (with the lumped bit), fluid_mass: [M_f];
         stiffness: [K] (with stabilizer springs), fluid_stiffness: [K_f],
         geometric_stiffness: [K_g(u_S)], the complete tangent of the strain energy at the

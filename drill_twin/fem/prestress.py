@@ -16,7 +16,7 @@ class Prestress:
     """
     The prestressed configuration.
 
-    Attributes:
+    Fields:
         displacement_m: u_S, shape (n_dofs,) (axial entries only; m).
         axial_force_n: N of each element (constant per element; tension > 0), N.
         hook_load_n: force the hook holds the string up with (> 0 when it carries weight), N.

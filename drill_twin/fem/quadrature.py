@@ -15,7 +15,7 @@ class ElementQuadrature:
     """
     Quadrature data of all elements.
 
-    Attributes:
+    Fields:
         xi: local coordinates of the points, shape (n_points,).
         weight_m: quadrature weight times element length, shape (n_el, n_points) (m).
         x_m: position of each point along the string, shape (n_el, n_points) (m).

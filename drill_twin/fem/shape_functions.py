@@ -43,10 +43,9 @@ def field_rows(xi: np.ndarray, length_m: np.ndarray, phi: np.ndarray) -> FieldRo
     """
     Rows of the six fields and of their x-derivatives at local coordinates ``xi``.
 
-    Args:
-        xi: local coordinates in [0, 1], shape (n_points,).
-        length_m: element lengths, shape (n_elements,).
-        phi: Timoshenko shear parameter of each element, shape (n_elements,).
+    :param xi: local coordinates in [0, 1], shape (n_points,).
+    :param length_m: element lengths, shape (n_elements,).
+    :param phi: Timoshenko shear parameter of each element, shape (n_elements,).
     """
     xi = np.asarray(xi, dtype=float)[None, :]
     le = np.asarray(length_m, dtype=float)[:, None]

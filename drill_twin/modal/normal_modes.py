@@ -18,7 +18,7 @@ class NormalModes:
     """
     All modes of ([K] + [K_f] + [K_g]) phi = omega^2 ([M] + [M_f]) phi, ascending.
 
-    Attributes:
+    Fields:
         eigenvalue: omega^2 (rad^2/s^2), shape (n_modes,).
         frequency_hz: omega / 2 pi (0 for rigid and for negative eigenvalues).
         shapes: mass-normalised shapes on the full DOF set, shape (n_dofs, n_modes).

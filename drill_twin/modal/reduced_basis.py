@@ -15,7 +15,7 @@ class ReducedBasis:
     """
     Columns of [Phi]: the rigid modes first, then the kept modes by frequency.
 
-    Attributes:
+    Fields:
         shapes: [Phi], shape (n_dofs, n_basis); mass-normalised.
         frequency_hz, kind, rigid: per column.
         rank: 1-based rank of each elastic column among the elastic columns (0 if rigid);

@@ -50,10 +50,9 @@ class StateGuard:
     """
     Bounds of one string's members (see the module docstring).
 
-    Args:
-        system: the reduced system the simulator steps.
-        law: its bit-rock law (for the torque scale).
-        envelope: the string's scales (derived from ``system`` if None).
+    :param system: the reduced system the simulator steps.
+    :param law: its bit-rock law (for the torque scale).
+    :param envelope: the string's scales (derived from ``system`` if None).
     """
 
     def __init__(self, system, law, envelope: StringEnvelope | None = None):

@@ -60,13 +60,12 @@ class GuardedSimulator:
     """
     A simulator whose failed or implausible steps restart the members concerned.
 
-    Args:
-        simulator: the batch.
-        first_member: the number of its member 0 in event messages (the mean model is 0,
-            the ensemble members 1..N).
-        name: what the batch is called in messages when it holds one member
-            ('the mean model') or when any member fails ('ensemble members').
-        guard: the physical bounds (derived from the simulator's system if None).
+    :param simulator: the batch.
+    :param first_member: the number of its member 0 in event messages (the mean model is 0,
+        the ensemble members 1..N).
+    :param name: what the batch is called in messages when it holds one member
+        ('the mean model') or when any member fails ('ensemble members').
+    :param guard: the physical bounds (derived from the simulator's system if None).
 
     Counters: ``resets`` (members restarted), ``failed_steps`` (steps skipped after a
     failed retry), ``breaches`` (member steps that broke a bound).

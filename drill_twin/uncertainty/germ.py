@@ -63,11 +63,9 @@ def gamma_shapes(dispersion: float) -> np.ndarray:
     """
     Shapes (n + 1)/(2 delta^2) + (1 - j)/2, j = 1..n, of the diagonal Gamma draws.
 
-    Args:
-        dispersion: delta, 0 < delta < MAX_DISPERSION.
+    :param dispersion: delta, 0 < delta < MAX_DISPERSION.
 
-    Returns:
-        Shape (n,) array.
+    :return: Shape (n,) array.
     """
     j = np.arange(1, GERM_ORDER + 1)
     return (GERM_ORDER + 1) / (2.0 * dispersion**2) + (1.0 - j) / 2.0
@@ -81,13 +79,11 @@ def sample_germ(dispersion: float, rng: np.random.Generator, size: int) -> np.nd
     strictly upper part of [L_G] first, then the (size, n) Gamma variables of its diagonal.
     For delta = 0 nothing is drawn and the identity is returned exactly.
 
-    Args:
-        dispersion: delta, dimensionless, 0 <= delta < MAX_DISPERSION.
-        rng: the generator to draw from.
-        size: number of realizations, >= 0.
+    :param dispersion: delta, dimensionless, 0 <= delta < MAX_DISPERSION.
+    :param rng: the generator to draw from.
+    :param size: number of realizations, >= 0.
 
-    Returns:
-        Shape (size, 2, 2) array of symmetric positive-definite matrices.
+    :return: Shape (size, 2, 2) array of symmetric positive-definite matrices.
     """
     delta = validate_dispersion(dispersion)
     size = int(size)
@@ -117,12 +113,10 @@ def realization_generator(seed: int, index: int) -> np.random.Generator:
     in batches, in any order, or spread over workers. Children of one seed are
     statistically independent streams.
 
-    Args:
-        seed: the study's seed, a non-negative integer.
-        index: the realization number, a non-negative integer.
+    :param seed: the study's seed, a non-negative integer.
+    :param index: the realization number, a non-negative integer.
 
-    Returns:
-        A fresh Generator positioned at the start of the realization's stream.
+    :return: A fresh Generator positioned at the start of the realization's stream.
     """
     seed, index = int(seed), int(index)
     if seed < 0 or index < 0:
@@ -135,13 +129,11 @@ def germs_for_realizations(dispersion: float, seed: int, indices: Sequence[int])
     """
     Draw the germ of each listed realization, the first draw of its own stream.
 
-    Args:
-        dispersion: delta, dimensionless, 0 <= delta < MAX_DISPERSION.
-        seed: the study's seed (see realization_generator).
-        indices: realization numbers, shape (n_realizations,).
+    :param dispersion: delta, dimensionless, 0 <= delta < MAX_DISPERSION.
+    :param seed: the study's seed (see realization_generator).
+    :param indices: realization numbers, shape (n_realizations,).
 
-    Returns:
-        Shape (n_realizations, 2, 2) array; row k is the germ of realization indices[k].
+    :return: Shape (n_realizations, 2, 2) array; row k is the germ of realization indices[k].
     """
     delta = validate_dispersion(dispersion)
     indices = np.asarray(indices, dtype=np.int64).reshape(-1)
@@ -155,11 +147,9 @@ def dispersion_of(samples: np.ndarray) -> float:
     """
     Estimate delta = sqrt(1/n mean ||G - I||_F^2) of Eq. 45 (1/n = 1/2 for n = 2).
 
-    Args:
-        samples: shape (n_samples, n, n).
+    :param samples: shape (n_samples, n, n).
 
-    Returns:
-        The estimate of delta (its square is an unbiased estimate of delta^2).
+    :return: The estimate of delta (its square is an unbiased estimate of delta^2).
     """
     samples = np.asarray(samples, dtype=float)
     n = samples.shape[-1]

@@ -36,13 +36,11 @@ def envelope(samples: np.ndarray, lower: float = 0.025, upper: float = 0.975) ->
     Quantiles are the empirical ones of numpy.quantile ('linear' interpolation between
     order statistics); with the defaults the band has probability level 0.95.
 
-    Args:
-        samples: shape (n_realizations, ...), any unit.
-        lower: lower probability, 0 <= lower < upper.
-        upper: upper probability, lower < upper <= 1.
+    :param samples: shape (n_realizations, ...), any unit.
+    :param lower: lower probability, 0 <= lower < upper.
+    :param upper: upper probability, lower < upper <= 1.
 
-    Returns:
-        Envelope(mean, lower, upper), each of shape samples.shape[1:], in the samples' unit.
+    :return: Envelope(mean, lower, upper), each of shape samples.shape[1:], in the samples' unit.
     """
     if not 0.0 <= lower < upper <= 1.0:
         raise ValueError(f'need 0 <= lower < upper <= 1; got lower={lower}, upper={upper}')
@@ -70,16 +68,14 @@ def fourier_modulus(
 
     Nothing is detrended: subtract the mean first to remove the f = 0 line.
 
-    Args:
-        signal: shape (..., n_time).
-        time_step_s: dt in s, > 0.
-        window: taper of shape (n_time,), e.g. numpy.hanning(n_time); None = rectangular.
-            It is rescaled to unit mean (coherent gain), so sinusoid peaks keep the
-            heights above when they fall on a bin.
-        scaling: 'transform' or 'amplitude'.
+    :param signal: shape (..., n_time).
+    :param time_step_s: dt in s, > 0.
+    :param window: taper of shape (n_time,), e.g. numpy.hanning(n_time); None = rectangular.
+        It is rescaled to unit mean (coherent gain), so sinusoid peaks keep the
+        heights above when they fall on a bin.
+    :param scaling: 'transform' or 'amplitude'.
 
-    Returns:
-        frequency_hz of shape (n_time // 2 + 1,) and modulus of shape (..., n_time // 2 + 1).
+    :return: frequency_hz of shape (n_time // 2 + 1,) and modulus of shape (..., n_time // 2 + 1).
     """
     step = _positive_step(time_step_s)
     if scaling not in SPECTRUM_SCALINGS:
@@ -112,14 +108,12 @@ def spectral_envelope(
     The modulus is computed per realization (fourier_modulus) and the statistics taken
     frequency by frequency, as in the paper's spectra (Fig. 8b, 13b).
 
-    Args:
-        samples: shape (n_realizations, ..., n_time).
-        time_step_s: dt in s.
-        lower, upper: probabilities of the band (see envelope).
-        window, scaling: see fourier_modulus.
+    :param samples: shape (n_realizations, ..., n_time).
+    :param time_step_s: dt in s.
+    :param lower, upper: probabilities of the band (see envelope).
+    :param window, scaling: see fourier_modulus.
 
-    Returns:
-        frequency_hz of shape (n_freq,), n_freq = n_time // 2 + 1, and an Envelope whose
+    :return: frequency_hz of shape (n_freq,), n_freq = n_time // 2 + 1, and an Envelope whose
         arrays have shape (..., n_freq), in the unit of the chosen scaling.
     """
     frequency_hz, modulus = fourier_modulus(samples, time_step_s, window, scaling)
@@ -132,13 +126,11 @@ def coefficient_of_variation(values: np.ndarray, axis: int = 0, ddof: int = 1) -
 
     Where the mean is 0 the result is inf (nan if the std is 0 too); no warning is issued.
 
-    Args:
-        values: any shape; realizations on `axis`.
-        axis: the axis of realizations.
-        ddof: delta degrees of freedom of the standard deviation.
+    :param values: any shape; realizations on `axis`.
+    :param axis: the axis of realizations.
+    :param ddof: delta degrees of freedom of the standard deviation.
 
-    Returns:
-        Dimensionless array, values.shape without `axis`.
+    :return: Dimensionless array, values.shape without `axis`.
     """
     values = np.asarray(values, dtype=float)
     with np.errstate(divide='ignore', invalid='ignore'):
@@ -153,12 +145,10 @@ def coefficient_of_variation_of_time_average(samples: np.ndarray, ddof: int = 1)
     std/|mean| is taken across realizations: the dispersion of a per-realization mean
     level (e.g. the mean ROP of each realization in 200-250 s).
 
-    Args:
-        samples: shape (n_realizations, ..., n_time), the stationary window only.
-        ddof: see coefficient_of_variation.
+    :param samples: shape (n_realizations, ..., n_time), the stationary window only.
+    :param ddof: see coefficient_of_variation.
 
-    Returns:
-        Dimensionless array of shape samples.shape[1:-1].
+    :return: Dimensionless array of shape samples.shape[1:-1].
     """
     samples = np.asarray(samples, dtype=float)
     return coefficient_of_variation(samples.mean(axis=-1), axis=0, ddof=ddof)
@@ -171,12 +161,10 @@ def coefficient_of_variation_per_instant(samples: np.ndarray, ddof: int = 1) -> 
     This is the paper's "for each time t, the coefficients of variation of WOB and TOB are
     ~5e-3" (Sect. 4.2).
 
-    Args:
-        samples: shape (n_realizations, ..., n_time).
-        ddof: see coefficient_of_variation.
+    :param samples: shape (n_realizations, ..., n_time).
+    :param ddof: see coefficient_of_variation.
 
-    Returns:
-        Dimensionless array of shape samples.shape[1:] (time on the last axis).
+    :return: Dimensionless array of shape samples.shape[1:] (time on the last axis).
     """
     return coefficient_of_variation(samples, axis=0, ddof=ddof)
 
@@ -186,12 +174,10 @@ def mean_coefficient_of_variation_per_instant(
     """
     Time average over the window of coefficient_of_variation_per_instant.
 
-    Args:
-        samples: shape (n_realizations, ..., n_time), the stationary window only.
-        ddof: see coefficient_of_variation.
+    :param samples: shape (n_realizations, ..., n_time), the stationary window only.
+    :param ddof: see coefficient_of_variation.
 
-    Returns:
-        Dimensionless array of shape samples.shape[1:-1].
+    :return: Dimensionless array of shape samples.shape[1:-1].
     """
     return coefficient_of_variation_per_instant(samples, ddof).mean(axis=-1)
 
@@ -200,12 +186,10 @@ def time_integral_of_squared_norm(u: np.ndarray, time_step_s: float) -> np.ndarr
     """
     int_0^t_f ||u(t)||^2 dt by the trapezoid rule, ||.|| the Euclidean norm over components.
 
-    Args:
-        u: shape (..., n_components, n_time), e.g. (n_realizations, n_dofs, n_time).
-        time_step_s: dt in s, > 0.
+    :param u: shape (..., n_components, n_time), e.g. (n_realizations, n_dofs, n_time).
+    :param time_step_s: dt in s, > 0.
 
-    Returns:
-        Shape u.shape[:-2], in [u unit]^2 * s.
+    :return: Shape u.shape[:-2], in [u unit]^2 * s.
     """
     step = _positive_step(time_step_s)
     u = np.asarray(u, dtype=float)
@@ -218,12 +202,10 @@ def mean_square_convergence(response_norm_sq_integrals: np.ndarray) -> np.ndarra
     """
     conv(n_s) = 1/n_s sum_{j <= n_s} int ||U(t, s_j)||^2 dt (Eq. 54), for n_s = 1..N.
 
-    Args:
-        response_norm_sq_integrals: shape (N, ...), the integral of each realization in
-            the order the realizations were drawn (see time_integral_of_squared_norm).
+    :param response_norm_sq_integrals: shape (N, ...), the integral of each realization in
+        the order the realizations were drawn (see time_integral_of_squared_norm).
 
-    Returns:
-        The running mean, same shape and unit; row n_s - 1 holds conv(n_s).
+    :return: The running mean, same shape and unit; row n_s - 1 holds conv(n_s).
     """
     values = np.asarray(response_norm_sq_integrals, dtype=float)
     counts = np.arange(1, values.shape[0] + 1).reshape((-1,) + (1,) * (values.ndim - 1))
