@@ -179,7 +179,7 @@ def _torsion_residual(omega, parameter, b2, c2, rho, germ, k):
 
 @kernel
 def _torsion(parameter, b2, c2, rho, germ, guess, k):
-    """omega solving omega = b2 + c2 F2(P, omega) at given P (bracketed, module docstring)."""
+    """Solve omega = b2 + c2 F2(P, omega) for omega at given P (bracketed, module docstring)."""
     r_b2 = _torsion_residual(b2, parameter, b2, c2, rho, germ, k)
     if b2 < 0.0:                                        # F2(P, 0) = 0: r(0) = -b2
         lo, hi, r_lo, r_hi = b2, 0.0, r_b2, -b2
@@ -233,7 +233,7 @@ def _mean_axial_root(omega, b1, c1, rho, k):
 
 @kernel
 def _point(parameter, omega, rho, germ, k):
-    """The graph's point at P (module docstring): (ROP, F1, F2, cutting rate)."""
+    """Return the graph's point at P (module docstring): (ROP, F1, F2, cutting rate)."""
     if parameter > 0:
         force = -parameter
         cut = cutting_rate(force, omega, k)
@@ -253,7 +253,7 @@ def _brackets(r_lo, r_hi):
 
 @inline
 def _illinois_start(lo, hi, r_lo, r_hi, tolerance, relative, residual_tolerance):
-    """The start of the Illinois method on [lo, hi]: (x, done)."""
+    """Start the Illinois method on [lo, hi]: return (x, done)."""
     x = lo if abs(r_lo) <= abs(r_hi) else hi
     done = (minimum(abs(r_lo), abs(r_hi)) <= residual_tolerance or not np.isfinite(r_lo)
             or not np.isfinite(r_hi) or hi - lo <= tolerance + relative * abs(x))

@@ -67,8 +67,9 @@ class BitRockLaw:
 
     def mean(self, rop, omega):
         """
-        (f_bit, t_bit) of the regularised law, without the lift-off cut (any shape; complex
-        arguments for complex-step differentiation).
+        Return (f_bit, t_bit) of the regularised law, without the lift-off cut.
+
+        Any shape; complex arguments for complex-step differentiation.
         """
         force, torque, _, _ = _call_law(self, rop, omega, None, cut=False)
         return force, torque
@@ -103,8 +104,10 @@ class BitRockLaw:
 
     def threshold_force(self, omega):
         """
-        f at which R(f, omega) = 0 for omega > 0, (a3 sqrt(omega^2 + e^2) - a1) / a2 (N),
-        written for any omega (even); about -47 kN at 5.2 rad/s, > 0 above 24.9 rad/s.
+        Return the f at which R(f, omega) = 0 (N).
+
+        For omega > 0, (a3 sqrt(omega^2 + e^2) - a1) / a2 (N), written for any omega (even);
+        about -47 kN at 5.2 rad/s, > 0 above 24.9 rad/s.
         """
         return (self.a3 * np.sqrt(omega * omega + self.e * self.e) - self.a1) / self.a2
 
@@ -194,9 +197,7 @@ _IDENTITY_GERM = np.eye(2)[None]
 
 @inline
 def away_from_zero(omega):
-    """
-    omega with its real part kept at least OMEGA_FLOOR in magnitude (imaginary part untouched).
-    """
+    """Return omega with its real part at least OMEGA_FLOOR in magnitude (imaginary untouched)."""
     real = omega.real
     if abs(real) < OMEGA_FLOOR_RAD_PER_S:
         floored = -OMEGA_FLOOR_RAD_PER_S if real < 0 else OMEGA_FLOOR_RAD_PER_S
@@ -310,9 +311,11 @@ def maximum(a, b):
 @kernel
 def bit_law(rop, omega, germ, random, constants, cut, force, torque, lifted, jacobian):
     """
-    The law at every (rop[i], omega[i]) (m,) into force, torque, lifted (m,) and
-    jacobian (m, 2, 2); germ (m or 1, 2, 2) is used when ``random``; ``cut``: the lift-off
-    cut (f >= 0: all zero and lifted), else the raw law (lifted False).
+    Evaluate the law at every (rop[i], omega[i]) (m,).
+
+    Into force, torque, lifted (m,) and jacobian (m, 2, 2); germ (m or 1, 2, 2) is used when
+    ``random``; ``cut``: the lift-off cut (f >= 0: all zero and lifted), else the raw law
+    (lifted False).
     """
     last = germ.shape[0] - 1
     for i in range(rop.shape[0]):

@@ -57,7 +57,7 @@ def _writable(directory: Path) -> bool:
 
 
 def cache_directory() -> Path | None:
-    """The kernels' cache folder (module docstring), None when nothing is writable."""
+    """Return the kernels' cache folder (module docstring), None when nothing is writable."""
     user_cache = Path(os.environ.get('XDG_CACHE_HOME') or Path.home() / '.cache')
     bases = [Path(os.environ['NUMBA_CACHE_DIR'])] if os.environ.get('NUMBA_CACHE_DIR') else []
     bases += [Path(__file__).parent / '__pycache__', user_cache / 'drill_twin',
@@ -88,5 +88,5 @@ def kernel(function):
 
 
 def inline(function):
-    """A helper of kernels, compiled into each kernel that calls it (not cached on its own)."""
+    """Compile a helper of kernels into each kernel that calls it (not cached on its own)."""
     return numba.njit(inline='always', **OPTIONS)(function)

@@ -43,8 +43,9 @@ class Stiff:
 
 class TorqueFeedback:
     """
-    omega_sp = omega_ref - HP(T_s) / c, HP(T) = T - LP(T), LP a first-order low-pass of
-    time constant tau (s); c in N m s/rad.
+    Set omega_sp = omega_ref - HP(T_s) / c, HP(T) = T - LP(T).
+
+    LP a first-order low-pass of time constant tau (s); c in N m s/rad.
     """
 
     name = 'torque_feedback'
@@ -91,7 +92,7 @@ def torsional_stiffness_nm_per_rad(config) -> float:
 
 
 def first_torsional_frequency_rad_per_s(system) -> float:
-    """The lowest elastic torsional frequency of the reduced basis (fixed top), rad/s."""
+    """Return the lowest elastic torsional frequency of the reduced basis (fixed top), rad/s."""
     basis = system.basis
     torsional = (basis.kind == 'torsional') & ~basis.rigid
     if not np.any(torsional):
@@ -101,7 +102,7 @@ def first_torsional_frequency_rad_per_s(system) -> float:
 
 
 def make_controller(config, system):
-    """The controller named by ``config.top_drive.controller``."""
+    """Build the controller named by ``config.top_drive.controller``."""
     drive = config.top_drive
     if drive.controller == 'stiff':
         return Stiff()

@@ -31,8 +31,9 @@ from drill_twin.dynamics.top_drive import NEWMARK_BETA, NEWMARK_GAMMA
 
 class TopAxialMotion:
     """
-    The top's axial displacement and velocity after the coming step as affine functions of
-    the hook load of that step (member 0).
+    Return the top's axial displacement and velocity after the coming step.
+
+    As affine functions of the hook load of that step (member 0).
     """
 
     def __init__(self, simulator):
@@ -112,11 +113,11 @@ class Drawworks:
         self.mode = mode
 
     def set_block_velocity(self, m_per_s: float) -> None:
-        """The block velocity command (m/s, down > 0), followed in block_velocity mode."""
+        """Return the block velocity command (m/s, down > 0), followed in block_velocity mode."""
         self.block_velocity_command_m_per_s = float(m_per_s)
 
     def set_weight_on_bit_setpoint(self, newton: float) -> None:
-        """The autodriller's WOB set-point (N, > 0 in compression)."""
+        """Return the autodriller's WOB set-point (N, > 0 in compression)."""
         self.weight_on_bit_setpoint_n = float(newton)
 
     def measured_weight_on_bit_n(self) -> float:
@@ -145,7 +146,7 @@ class Drawworks:
 
 
 def line_hook_load_n(drawworks: Drawworks) -> float:
-    """The line's pull at the current state (N): the hook load as measured."""
+    """Return the line's pull at the current state (N): the hook load as measured."""
     u, v = drawworks.top.now()
     return max(drawworks.top.static_hook_load_n
                + drawworks.line_stiffness * (u - drawworks.block_position_m)

@@ -1,6 +1,7 @@
 """
-Linear torsional stability of steady drilling with the top drive and its controller
-(issue 13, docs/DRIVES.md): why a controller can or cannot remove stick-slip.
+Linear torsional stability of steady drilling with the top drive and its controller.
+
+Issue 13, docs/DRIVES.md: why a controller can or cannot remove stick-slip.
 
 About steady drilling, with the axial motion quasi-static (constant WOB, as in
 :mod:`drill_twin.dynamics.linear_stability`), the bit's resisting torque varies with the bit
@@ -30,8 +31,9 @@ from drill_twin.dynamics.controllers import make_controller
 def bit_torque_slope_nm_s_per_rad(config, speed_rad_per_s: float,
                                   weight_on_bit_n: float) -> float:
     """
-    dT/domega of the bit's resisting torque at constant WOB (N m s/rad), steady drilling
-    at (speed, WOB > 0 in compression).
+    Return dT/domega of the bit's resisting torque at constant WOB (N m s/rad).
+
+    Steady drilling at (speed, WOB > 0 in compression).
     """
     law = BitRockLaw.from_config(config.bit_rock)
     rop = law.steady_rop(speed_rad_per_s, -weight_on_bit_n)
@@ -42,8 +44,10 @@ def bit_torque_slope_nm_s_per_rad(config, speed_rad_per_s: float,
 
 def growth_rate_per_s(config, system, drive: str, slope_nm_s_per_rad: float) -> float:
     """
-    Largest real part of the eigenvalues (1/s) with ``drive`` 'kinematic' or a
-    controller name (the dynamic drive of ``config.top_drive`` with that controller).
+    Return the largest real part of the eigenvalues (1/s).
+
+    With ``drive`` 'kinematic' or a controller name (the dynamic drive of
+    ``config.top_drive`` with that controller).
     """
     torsion = system.blocks['torsional']
     c = torsion.columns

@@ -68,7 +68,7 @@ class StrainOperators:
             weight_m=np.ascontiguousarray(system.gauss_weight_m, dtype=float))
 
     def arguments(self) -> tuple:
-        """The kernel's operator arguments, in its order."""
+        """Return the kernel's operator arguments, in its order."""
         return (self.strain_pointer, self.strain_column, self.strain_value,
                 self.tangent_pointer, self.tangent_row, self.tangent_column, self.tangent_value,
                 self.prestress_strain, self.prestress_stress, self.section, self.weight_m)
@@ -77,8 +77,9 @@ class StrainOperators:
 @inline
 def _stress(e, a, b, ky, kz, tau, ty, tz, ea, ei, er4, kga, kgi):
     """
-    dW/dg at the strains g = (e, a, b, kappa_y, kappa_z, tau, theta_y, theta_z) of a
-    section (EA, EI, ER4, kGA, kGI): fem.strain_energy.stress_components, term by term.
+    Return dW/dg at the strains g = (e, a, b, kappa_y, kappa_z, tau, theta_y, theta_z).
+
+    Of a section (EA, EI, ER4, kGA, kGI): fem.strain_energy.stress_components, term by term.
     """
     one_e = 1 + e
     p = tau * ty - kz
@@ -167,10 +168,7 @@ def _accumulate_member(displacement_t, i, strain_pointer, strain_column, strain_
                        tangent_pointer, tangent_row, tangent_column, tangent_value,
                        prestress_strain, prestress_stress, section, weight_m, strain, linear,
                        stress, force_t):
-    """
-    The loop of :func:`accumulate_finite_strain` for member i alone (column i of the work
-    arrays).
-    """
+    """Run the loop of :func:`accumulate_finite_strain` for member i alone (work column i)."""
     for p in range(weight_m.shape[0]):
         for k in range(8):
             row = 8 * p + k

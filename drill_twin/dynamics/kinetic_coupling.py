@@ -67,7 +67,7 @@ class CouplingOperators:
                                               * system.gauss_weight_m, dtype=float))
 
     def arguments(self) -> tuple:
-        """The kernel's operator arguments, in its order."""
+        """Return the kernel's operator arguments, in its order."""
         return (*self.theta_x, *self.theta_y, *self.theta_z, self.torsion_row,
                 self.bending_y_row, self.bending_z_row, self.scale)
 
@@ -75,8 +75,9 @@ class CouplingOperators:
 @inline
 def _point_forces(scale, rate_x, acc_x, rate_z, acc_z, theta_y, rate_y):
     """
-    Forces on (theta_x, theta_y, theta_z) of a Gauss point of weight rho I_p w (module
-    docstring).
+    Return the forces on (theta_x, theta_y, theta_z) of a Gauss point of weight rho I_p w.
+
+    See the module docstring.
     """
     return (scale * (rate_y * rate_z + theta_y * acc_z), -scale * rate_x * rate_z,
             scale * (acc_x * theta_y + rate_x * rate_y))
@@ -164,7 +165,7 @@ def accumulate_kinetic_coupling(displacement_t, theta_x_rate_t, theta_x_accelera
 
 
 def transposed(array) -> np.ndarray:
-    """A (m, k) array as a C-contiguous (k, m) array (the kernels' member-last layout)."""
+    """Return a (m, k) array as a C-contiguous (k, m) array (the kernels' member-last layout)."""
     return np.ascontiguousarray(np.asarray(array, dtype=float).T)
 
 

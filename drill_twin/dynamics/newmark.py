@@ -97,7 +97,7 @@ class BatchState:
                           self.hook_load_n, None if self.hole_u is None else self.hole_u.copy())
 
     def take(self, members) -> 'BatchState':
-        """The state of ``members`` (indices) only, copied."""
+        """Return the state of ``members`` (indices) only, copied."""
         return BatchState(self.time_s, self.q[members].copy(), self.q_rate[members].copy(),
                           self.q_acceleration[members].copy(), self.top_angle_rad,
                           self.top_speed_rad_per_s, self.top_acceleration_rad_per_s2,
@@ -250,7 +250,7 @@ class NewmarkIntegrator:
                       hook_load_n: float, top_angle_rad: float = 0.0,
                       hole_u: np.ndarray | None = None) -> BatchState:
         """
-        A state at t = 0 with the accelerations that balance Eq. 35 (fixed point).
+        Return a state at t = 0 with the accelerations that balance Eq. 35 (fixed point).
 
         hole_u: the hole bottom (m,), or None to put it where the bit is (on bottom).
         """
@@ -309,7 +309,7 @@ class NewmarkIntegrator:
                 law.constants, float(law.fade_speed_rad_per_s), germs, germ is not None)
 
     def with_time_step(self, time_step_s: float) -> 'NewmarkIntegrator':
-        """The same integrator (forces, tolerance, germs) with another time step."""
+        """Return the same integrator (forces, tolerance, germs) with another time step."""
         return NewmarkIntegrator(self.forces, time_step_s, self.tolerance, self.max_iterations,
                                  self.germ)
 
@@ -403,7 +403,7 @@ class NewmarkIntegrator:
                                      evaluation)
 
     def _step_work(self, members: int) -> compiled.StepWork:
-        """The work arrays of a step of ``members`` (made again only when m changes)."""
+        """Return the work arrays of a step of ``members`` (made again only when m changes)."""
         work = self._work
         if work is None or work.members != members:
             work = compiled.StepWork(self.system.size, members)
@@ -444,8 +444,9 @@ class NewmarkIntegrator:
 
     def forget(self, members) -> None:
         """
-        Drop the contraction-rate history of ``members`` (indices; None: of everyone), so
-        that their next step verifies its first iterate.
+        Drop the contraction-rate history of ``members`` (indices; None: of everyone).
+
+        So that their next step verifies its first iterate.
         """
         if members is None:
             self._rate = self._steps_since_verified = self._active = None
@@ -469,7 +470,7 @@ class NewmarkIntegrator:
         return accept
 
     def _with_bit(self, evaluation: ForceEvaluation, bit: _BitSolution) -> ForceEvaluation:
-        """The evaluation with the bit's forces of the final state (exact)."""
+        """Return the evaluation with the bit's forces of the final state (exact)."""
         full = evaluation.full.copy()
         system = self.system
         axial = system.field(0).start + system.bit_node
@@ -512,8 +513,9 @@ def _diagonal_blocks(damping, inverse, groups):
 
 class _FinalEvaluation:
     """
-    The arrays of a step's final evaluation (new for every step: the caller keeps them),
-    in the order :func:`newmark_kernel.update` takes them: full (n_dofs, m), modal (n, m),
+    Return the arrays of a step's final evaluation (new for every step: the caller keeps them).
+
+    In the order :func:`newmark_kernel.update` takes them: full (n_dofs, m), modal (n, m),
     radial, contact (m, n_nodes), tangent (m, n_nodes, 2, 2); the bit's rop, omega, force,
     torque, lifted (m,), jacobian (m, 2, 2), solved (m,).
     """

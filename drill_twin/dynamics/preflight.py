@@ -101,8 +101,9 @@ class OperatingPoint:
 @dataclass(frozen=True)
 class PreflightResult:
     """
-    The model built during the check, for the run to reuse, and the operating point
-    (None without the bit-rock law).
+    Hold the model built during the check, for the run to reuse, and the operating point.
+
+    The operating point is None without the bit-rock law.
     """
 
     model: FiniteElementModel
@@ -140,7 +141,7 @@ def build_model(config: DrillStringConfig, reduced_system: bool = True):
 
 def torque_capacity_nm(config: DrillStringConfig) -> float:
     """
-    The largest torque every section carries.
+    Return the largest torque every section carries.
 
     SHEAR_STRAIN_LIMIT G J / r_o of the weakest, with J = pi (D_o^4 - D_i^4) / 32 (N m).
     """
@@ -153,7 +154,7 @@ def torque_capacity_nm(config: DrillStringConfig) -> float:
 
 
 def operating_point(config: DrillStringConfig, model: FiniteElementModel) -> OperatingPoint:
-    """The steady state of the bit-rock law at the configured top-drive speed and hook load."""
+    """Return the steady state of the bit-rock law at the configured top-drive speed, hook load."""
     static = config.bit_rock.static_weight_on_bit_n
     hook = config.operation.hook_load_n
     if config.physics.prestress:
@@ -175,7 +176,7 @@ def operating_point(config: DrillStringConfig, model: FiniteElementModel) -> Ope
 
 def check_operating_point(config: DrillStringConfig,
                           model: FiniteElementModel) -> OperatingPoint:
-    """The operating point, if plausible (module docstring); else :class:`PreflightError`."""
+    """Return the operating point if plausible (module docstring), else :class:`PreflightError`."""
     p = operating_point(config, model)
     if p.string_weight_n is not None:
         weight = p.string_weight_n

@@ -49,7 +49,7 @@ class SteadyDrilling:
     @classmethod
     def of(cls, law: BitRockLaw, top_speed_rad_per_s: float,
            weight_on_bit_n: float) -> 'SteadyDrilling':
-        """The steady state of ``law`` at (Omega, WOB)."""
+        """Return the steady state of ``law`` at (Omega, WOB)."""
         omega = float(top_speed_rad_per_s)
         rop = float(law.steady_rop(omega, -float(weight_on_bit_n)))
         force, torque, lifted, jacobian = law.forces_and_jacobian(np.array([rop]),
@@ -66,7 +66,7 @@ def string_weight_n(system: ReducedSystem) -> float:
 
 
 def hook_load_for(system: ReducedSystem, weight_on_bit_n: float) -> float:
-    """The hook load (N) that sets a stationary weight on bit WOB (> 0 in compression)."""
+    """Return the hook load (N) that sets a stationary weight on bit WOB (> 0 in compression)."""
     return string_weight_n(system) - float(weight_on_bit_n)
 
 

@@ -1,6 +1,7 @@
 """
-A torsional wave pulse travelling up the string, and its reflection at the top
-(issue 13, docs/DRIVES.md: the evidence for the impedance controller).
+A torsional wave pulse travelling up the string, and its reflection at the top.
+
+Issue 13, docs/DRIVES.md: the evidence for the impedance controller.
 
 A wave going up (towards x = 0) is theta(x, t) = f(x + c t): its angular velocity is
 c f'(x + c t) and its twist theta' = f' = theta_dot / c. A Gaussian velocity pulse
@@ -20,8 +21,9 @@ from scipy.special import erf
 def upward_pulse(system, center_m: float, width_m: float, amplitude_rad_per_s: float,
                  wave_speed_m_per_s: float) -> tuple[np.ndarray, np.ndarray]:
     """
-    Torsional coordinates and rates (each of the torsional block's size) of an upward
-    Gaussian pulse (module docstring), in the reduced basis of ``system``.
+    Return the torsional coordinates and rates of an upward Gaussian pulse (module docstring).
+
+    Each of the torsional block's size, in the reduced basis of ``system``.
     """
     torsion = system.blocks['torsional']
     x = system.model.mesh.node_x_m
@@ -38,8 +40,9 @@ def upward_pulse(system, center_m: float, width_m: float, amplitude_rad_per_s: f
 def reflection_coefficient(time_s: np.ndarray, station_speed: np.ndarray,
                            split_s: float) -> float:
     """
-    Peak of the pulse after ``split_s`` over the peak before it (signed), of a speed
-    series about its start value.
+    Return the peak of the pulse after ``split_s`` over the peak before it (signed).
+
+    Of a speed series about its start value.
     """
     relative = station_speed - station_speed[0]
     before, after = relative[time_s < split_s], relative[time_s >= split_s]

@@ -16,8 +16,9 @@ import time
 
 def warm_up(steps: int = 3) -> float:
     """
-    Step the default string as a mean model and as a batch of random members, off and on
-    the wall; returns the wall time it took (s).
+    Step the default string as a mean model and as a batch of random members.
+
+    Off and on the wall; returns the wall time it took (s).
     """
     from drill_twin.config.loader import load_config
     from drill_twin.dynamics.simulator import Simulator
