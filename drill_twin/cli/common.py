@@ -29,6 +29,8 @@ def config_from_args(args: argparse.Namespace) -> DrillStringConfig:
 
 class OneLineArgumentParser(argparse.ArgumentParser):
     """
+    Parse like argparse, with errors of one line and exit status 2.
+
     argparse's parser whose errors (an option missing, a value of the wrong type) are one
     line and exit status 2, like every other bad input, instead of the usage and a line.
     """
@@ -80,7 +82,7 @@ def build_model_or_refuse(config: DrillStringConfig, overrides=()):
 def blamed(config: DrillStringConfig, overrides, message: str, key: str = '',
            related=()) -> ConfigError:
     """
-    A problem of ``config`` as a ConfigError naming where ``key`` came from.
+    Return a problem of ``config`` as a ConfigError naming where ``key`` came from.
 
     ``--set`` if an override set it (or one of the ``related`` keys), else the file; a problem
     of the configuration as a whole (no key) names the file and every override.
@@ -100,7 +102,7 @@ def blamed(config: DrillStringConfig, overrides, message: str, key: str = '',
 # -- command-line values -------------------------------------------------------------------------
 
 def positive_seconds(option: str, value: float) -> float:
-    """A finite positive duration, else a UsageError naming ``option``."""
+    """Return a finite positive duration, else raise a UsageError naming ``option``."""
     if not (math.isfinite(value) and value > 0):
         raise UsageError(f'{option}: must be positive and finite (seconds), got {value}')
     return value

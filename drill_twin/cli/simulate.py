@@ -72,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
 
 def history_size(config, duration_s: float, members: int = 1) -> tuple[float, float]:
     """
-    (records, bytes) of the history ``run_simulation`` keeps for ``duration_s``.
+    Return (records, bytes) of the history ``run_simulation`` keeps for ``duration_s``.
 
     The recorder's preallocated arrays and the result's copy of them.
     """

@@ -86,7 +86,7 @@ def _same_or_inside(key: str, prefix: str) -> bool:
 
 def labelled_path(raw: dict, path: str) -> str:
     """
-    A dotted path as errors name it.
+    Return a dotted path as errors name it.
 
     List items by their ``name`` (else their index), so that ``sections.1.length_m`` reads
     ``sections.drill_collar.length_m``.
@@ -117,7 +117,7 @@ def build_config(raw: dict, source: str = '<mapping>') -> DrillStringConfig:
 
 
 def config_to_dict(config: DrillStringConfig) -> dict:
-    """The plain mapping of a configuration (for log metadata and round trips)."""
+    """Return the plain mapping of a configuration (for log metadata and round trips)."""
     result = dataclasses.asdict(config)
     result.pop('source', None)
     return _plain(result)
@@ -307,7 +307,7 @@ def _convert(hint, value, key: str):
 
 
 def _item_label(item, index: int) -> str:
-    """A list item is named by its ``name`` when it has one, else by its index."""
+    """Name a list item by its ``name`` when it has one, else by its index."""
     if isinstance(item, dict) and isinstance(item.get('name'), str) and item['name']:
         return item['name']
     return str(index)

@@ -10,7 +10,7 @@ DEFAULT_CONFIG_NAME = 'ritto2009.yaml'
 
 def config_directory() -> Path:
     """
-    The directory holding the shipped ``*.yaml`` files.
+    Return the directory holding the shipped ``*.yaml`` files.
 
     Looked up in order: ``$DRILL_TWIN_CONFIG_DIR``; the source tree (``config/`` beside
     the package, for editable installs); ``share/drill_twin/config`` under the

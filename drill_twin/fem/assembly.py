@@ -27,6 +27,10 @@ def assemble_vector(element_vectors: np.ndarray, element_dofs: np.ndarray,
 
 def point_matrix(rows: np.ndarray, dofs: np.ndarray, coefficient: float,
                  n_dofs: int) -> sp.csr_matrix:
-    """coefficient * r^T r for interpolation rows r (n_rows, 12) on the element DOFs ``dofs``."""
+    """
+    Return coefficient * r^T r for interpolation rows r (n_rows, 12) on the element DOFs.
+
+    The element DOFs are ``dofs``.
+    """
     block = coefficient * np.einsum('ri,rj->ij', rows, rows)
     return assemble_matrix(block[None], dofs[None], n_dofs)

@@ -34,7 +34,7 @@ def constrained_dofs(boundary: Boundary, n_nodes: int) -> np.ndarray:
 
 
 def free_dofs(constrained: np.ndarray, n_dofs: int) -> np.ndarray:
-    """The DOFs that are not constrained, sorted."""
+    """Return the DOFs that are not constrained, sorted."""
     mask = np.ones(n_dofs, dtype=bool)
     mask[constrained] = False
     return np.flatnonzero(mask)

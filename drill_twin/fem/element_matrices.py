@@ -11,7 +11,7 @@ from drill_twin.fem.quadrature import ElementQuadrature
 def weighted_gram(rows_a: np.ndarray, rows_b: np.ndarray, coefficient: np.ndarray,
                   weight_m: np.ndarray) -> np.ndarray:
     """
-    sum over points of coefficient * weight * a^T b.
+    Sum over points of coefficient * weight * a^T b.
 
     rows_a, rows_b: (n_el, n_points, 12); coefficient, weight_m: (n_el, n_points) or
     broadcastable. Returns (n_el, 12, 12).

@@ -135,7 +135,7 @@ def fluid_viscous_damping_matrices(config: DrillStringConfig, flow: FlowField,
 
 
 def coriolis_coefficient(config: DrillStringConfig, flow: FlowField) -> np.ndarray:
-    """c = 2 M_f U_i - 2 chi rho_f A_o U_o of each element (kg/s)."""
+    """Return c = 2 M_f U_i - 2 chi rho_f A_o U_o of each element (kg/s)."""
     return (2.0 * flow.inner_fluid_mass_kg_per_m * flow.inner_speed_m_per_s
             - 2.0 * flow.chi * config.fluid.density_kg_per_m3 * flow.outer_area_m2
             * flow.annulus_speed_m_per_s)

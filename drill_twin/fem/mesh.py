@@ -64,7 +64,7 @@ class Mesh:
         return self.n_nodes - 1
 
     def timoshenko_phi(self) -> np.ndarray:
-        """phi = 12 E I / (k_s G A l_e^2) of each element (Appendix A)."""
+        """Return phi = 12 E I / (k_s G A l_e^2) of each element (Appendix A)."""
         return (12.0 * self.young_modulus_pa * self.inertia_m4
                 / (self.shear_correction * self.shear_modulus_pa * self.area_m2
                    * self.length_m ** 2))

@@ -38,7 +38,7 @@ class ReducedBasis:
         return self.shapes.shape[1]
 
     def count(self, kind: str) -> int:
-        """Number of elastic columns of one type."""
+        """Count the elastic columns of one type."""
         return int(np.sum((self.kind == kind) & ~self.rigid))
 
 

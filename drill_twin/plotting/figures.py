@@ -35,8 +35,9 @@ def spectrum(signal: np.ndarray, time_step_s: float) -> tuple[np.ndarray, np.nda
 def plot_run(result: SimulationResult, path: str | Path, window_s: float,
              clearance_m: float | None = None, member: int = 0) -> Path:
     """
-    Time histories and spectra of ROP, bit speed, WOB, TOB and the radial displacement at
-    the first station (the paper's Figs. 8-11 for the mean model).
+    Plot time histories and spectra of ROP, bit speed, WOB, TOB and the radial displacement.
+
+    The radial displacement at the first station (the paper's Figs. 8-11 for the mean model).
     """
     mask = result.window(window_s)
     t = result.time_s[mask]

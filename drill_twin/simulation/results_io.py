@@ -82,8 +82,9 @@ def columns(result: SimulationResult, member: int = 0) -> dict[str, np.ndarray]:
 def write_results(result: SimulationResult, path: str | Path, member: int = 0,
                   metadata: dict | None = None) -> Path:
     """
-    Write one member's record as ``.csv`` (header row) or ``.npz`` (named arrays plus a
-    ``metadata`` JSON string); the extension chooses.
+    Write one member's record as ``.csv`` or ``.npz``; the extension chooses.
+
+    ``.csv`` with a header row, ``.npz`` with named arrays plus a ``metadata`` JSON string.
     """
     path = Path(path)
     data = columns(result, member)

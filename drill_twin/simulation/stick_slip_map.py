@@ -164,7 +164,7 @@ class MapResult:
     workers: int = 1
 
     def column(self, name: str) -> np.ndarray:
-        """A numeric column shaped like the grid, (n_wob, n_speed)."""
+        """Return a numeric column shaped like the grid, (n_wob, n_speed)."""
         return np.array([row[name] for row in self.rows], dtype=float).reshape(self.spec.shape)
 
     def failed_points(self) -> list[dict]:
@@ -173,7 +173,7 @@ class MapResult:
 
 @functools.lru_cache(maxsize=4)
 def _system_for(config_json: str):
-    """The configuration and its reduced system, built once per process."""
+    """Return the configuration and its reduced system, built once per process."""
     config = build_config(json.loads(config_json))
     model, _, basis = modal_analysis(config)
     return config, build_reduced_system(model, basis)

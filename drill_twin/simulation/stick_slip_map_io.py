@@ -66,7 +66,7 @@ def write_map(result: MapResult, directory: str | Path, figure: bool = True) -> 
 
 
 def read_map(directory: str | Path) -> MapResult:
-    """A map back from its files (to redraw or analyse it without rerunning)."""
+    """Read a map back from its files (to redraw or analyse it without rerunning)."""
     directory = Path(directory)
     info = json.loads((directory / 'map.json').read_text())
     spec = MapSpec(**{key: info[key] for key in ('speeds_rad_per_s', 'weights_on_bit_n',
@@ -98,14 +98,14 @@ def _value(name: str, text: str):
 
 
 def markdown_table() -> str:
-    """The columns of map.csv as a Markdown table (docs/MAP.md prints it)."""
+    """Return the columns of map.csv as a Markdown table (docs/MAP.md prints it)."""
     lines = ['| column | meaning |', '|---|---|']
     lines += [f'| `{name}` | {meaning} |' for name, meaning in COLUMNS.items()]
     return '\n'.join(lines)
 
 
 def summary(result: MapResult) -> dict:
-    """The map's parameters, timing and failures."""
+    """Return the map's parameters, timing and failures."""
     spec = result.spec
     points = len(result.rows)
     return {

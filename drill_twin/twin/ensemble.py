@@ -236,7 +236,7 @@ class EnsembleProcess:
 
 
 def serve(connection) -> None:
-    """The worker's loop: build the ensemble, then one result per request."""
+    """Run the worker's loop: build the ensemble, then one result per request."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         config, settings, system = connection.recv()
@@ -262,7 +262,7 @@ def serve(connection) -> None:
 
 
 def open_ensemble(config: DrillStringConfig, settings: EnsembleSettings, system):
-    """The ensemble of ``settings`` (None without members), here or in a worker process."""
+    """Start the ensemble of ``settings`` (None without members), here or in a worker process."""
     if settings.members == 0:
         return None
     kind = EnsembleProcess if settings.separate_process else LocalEnsemble

@@ -95,7 +95,7 @@ class StringEnvelope:
 
     @classmethod
     def of(cls, system) -> 'StringEnvelope':
-        """The envelope of a reduced system (:class:`~drill_twin.dynamics.reduced_system`)."""
+        """Build the envelope of a reduced system (:class:`~drill_twin.dynamics.reduced_system`)."""
         model = system.model
         mesh, prestress = model.mesh, model.prestress
         weight = prestress.hook_load_n - prestress.static_weight_on_bit_n
@@ -150,7 +150,7 @@ def _bha_weight(model, weight_n: float) -> float:
 def largest_torque_on_bit_nm(law: BitRockLaw, top_speed_max_rad_per_s: float,
                              weight_on_bit_max_n: float) -> float:
     """
-    The largest |TOB| of the bit-rock law over the envelope (N m).
+    Return the largest |TOB| of the bit-rock law over the envelope (N m).
 
     Bit speeds 0 ... the top speed, at the steady ROP of the largest WOB, the ROP capped at the
     block speed (a law whose ROP exceeds it is itself implausible and is caught on the ROP).

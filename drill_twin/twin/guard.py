@@ -130,7 +130,7 @@ class StateGuard:
         return reasons
 
     def _bounds(self, top_speed_rad_per_s: float) -> dict[str, float]:
-        """The speed, force and energy bounds at a top-drive speed, by measured quantity."""
+        """Return the speed, force and energy bounds at a top-drive speed, by measured quantity."""
         axial = self.axial_speed_max_m_per_s
         return {'rop': axial, 'top_axial_speed': axial,
                 'bit_speed': self.rotation_speed_max(top_speed_rad_per_s),
@@ -138,7 +138,7 @@ class StateGuard:
                 'kinetic_energy': self.kinetic_energy_max(top_speed_rad_per_s)}
 
     def _measure(self, simulator, state, forces) -> dict[str, np.ndarray]:
-        """The checked quantities of every member, shape (m,) ((m, n_nodes) for radius)."""
+        """Return the checked quantities of every member, shape (m,) ((m, n_nodes) for radius)."""
         finite = (np.isfinite(state.q).all(axis=1) & np.isfinite(state.q_rate).all(axis=1)
                   & np.isfinite(state.q_acceleration).all(axis=1))
         rop, omega = forces.rop_m_per_s, forces.bit_speed_rad_per_s
@@ -188,7 +188,7 @@ class StateGuard:
 
     def _hole_depth(self, simulator, depth):
         """
-        The hole's depth per member (m).
+        Return the hole's depth per member (m).
 
         The simulator's, or the deepest plausible bit position so far (today's model drills
         wherever the bit is: the hole is where the bit has been deepest).

@@ -67,7 +67,7 @@ class HealthMonitor:
 
     def note(self, level: str, key: str, text: str) -> None:
         """
-        A problem of this period.
+        Return a problem of this period.
 
         Per key, the worst level with its text (the latest text among notes of that level).
         """
@@ -77,7 +77,7 @@ class HealthMonitor:
         self._notes[key] = (level, text)
 
     def detail(self, counter: str, text: str) -> None:
-        """The latest detail of a counter's problem (e.g. which bound was broken)."""
+        """Return the latest detail of a counter's problem (e.g. which bound was broken)."""
         self._details[counter] = text
 
     def observe_events(self, events) -> None:
@@ -97,7 +97,7 @@ class HealthMonitor:
 
     def report(self, counters: dict, values: dict) -> HealthReport:
         """
-        The report of this period.
+        Return the report of this period.
 
         ``counters`` are the cumulative counts (COUNTERS' keys; missing ones count 0),
         ``values`` the figures to show.

@@ -122,8 +122,9 @@ class GuardedSimulator:
 
     def _contain(self, reasons: dict[int, str], before) -> None:
         """
-        Put the members that broke a bound back to their last good state and restart
-        them from a safe state there (or keep the last good state if that breaks too).
+        Put the members that broke a bound back to their last good state.
+
+        Restart them from a safe state there (or keep the last good state if that breaks too).
         """
         breached = np.zeros(self.simulator.members, dtype=bool)
         breached[list(reasons)] = True

@@ -30,8 +30,9 @@ def _worker_environment():
 
 class SerialExecutor:
     """
-    Run every chunk in this process, one after the other (agrees with the others to
-    rounding: this process's BLAS was set up before the study).
+    Run every chunk in this process, one after the other.
+
+    Agrees with the others to rounding: this process's BLAS was set up before the study.
     """
 
     workers = 1
@@ -85,8 +86,10 @@ class DaskExecutor:
 
 def make_executor(workers: int | None, scheduler: str | None):
     """
-    Dask if a scheduler address is given, else ``workers`` local processes (default: one
-    per core; even one worker runs in its own process, for identical BLAS set-up).
+    Make a Dask executor if a scheduler address is given, else ``workers`` local processes.
+
+    ``workers`` defaults to one per core; even one worker runs in its own process, for
+    identical BLAS set-up.
     """
     if scheduler:
         return DaskExecutor(scheduler)

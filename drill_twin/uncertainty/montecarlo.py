@@ -82,7 +82,7 @@ class StudySpec:
             raise ValueError(f'seed: must be >= 0, got {self.seed}')
 
     def chunks(self) -> list[tuple[int, ...]]:
-        """The fixed partition of realization indices into chunks."""
+        """Return the fixed partition of realization indices into chunks."""
         return [tuple(range(start, min(start + self.batch_size, self.samples)))
                 for start in range(0, self.samples, self.batch_size)]
 
@@ -116,7 +116,7 @@ class ChunkResult:
 
 @functools.lru_cache(maxsize=4)
 def _system_for(config_json: str):
-    """The reduced system of a configuration, built once per process."""
+    """Return the reduced system of a configuration, built once per process."""
     config = build_config(json.loads(config_json))
     model, _, basis = modal_analysis(config)
     return config, build_reduced_system(model, basis)
@@ -125,8 +125,9 @@ def _system_for(config_json: str):
 def run_chunk(config_json: str, spec: StudySpec, indices: tuple[int, ...],
               mean_model: bool = False) -> ChunkResult:
     """
-    Integrate the realizations ``indices`` (and the mean model as one more member when
-    ``mean_model``) for the study's duration.
+    Integrate the realizations ``indices`` for the study's duration.
+
+    With the mean model as one more member when ``mean_model``.
 
     ``config_json`` is the configuration as a JSON mapping (it travels to other processes).
     Realizations that diverge are reported in ``failed`` and the chunk is rerun without them;

@@ -53,7 +53,7 @@ class StudyResult:
                 for key, name in COV_KEYS.items()}
 
     def coefficient_of_variation_of_time_average(self) -> dict[str, float]:
-        """CoV across realizations of each realization's window average."""
+        """Return the CoV across realizations of each realization's window average."""
         return {key: float(statistics.coefficient_of_variation_of_time_average(
             self.realizations[name])) if len(self.indices) > 1 else float('nan')
                 for key, name in COV_KEYS.items()}
@@ -63,13 +63,14 @@ class StudyResult:
         return statistics.mean_square_convergence(self.norm_integral)
 
     def envelopes(self) -> dict:
-        """quantity -> Envelope (mean, 2.5 %, 97.5 %) in time, shape (n_w,) each."""
+        """Return quantity -> Envelope (mean, 2.5 %, 97.5 %) in time, shape (n_w,) each."""
         return {q: statistics.envelope(self.realizations[q]) for q in QUANTITIES}
 
     def spectra(self):
         """
-        (frequency_hz, quantity -> (mean-model spectrum, Envelope)) of the mean-removed
-        window signals (one-sided amplitude spectra).
+        Return (frequency_hz, quantity -> (mean-model spectrum, Envelope)).
+
+        Of the mean-removed window signals (one-sided amplitude spectra).
         """
         out = {}
         frequency = None
