@@ -13,7 +13,10 @@ def fixed_free_rod_hz(n_modes: int, length_m: float, wave_speed_m_per_s: float) 
 
 def rod_with_tip_inertia_hz(n_modes: int, length_m: float, wave_speed_m_per_s: float,
                             inertia_ratio: float) -> np.ndarray:
-    """Fixed rod with a rigid tip inertia: beta tan beta = mu, f = beta c / (2 pi L).
+    """
+    Return the frequencies of a fixed rod with a rigid tip inertia: beta tan beta = mu.
+
+    f = beta c / (2 pi L).
 
     mu is the rod's own inertia divided by the tip's (mass ratio for axial motion,
     polar-inertia ratio for torsion).
@@ -28,7 +31,8 @@ def rod_with_tip_inertia_hz(n_modes: int, length_m: float, wave_speed_m_per_s: f
 
 def tensioned_pinned_beam_hz(n_modes: int, length_m: float, bending_stiffness_n_m2: float,
                              tension_n: float, mass_per_length_kg_per_m: float) -> np.ndarray:
-    """Euler-Bernoulli beam under tension, pinned at both ends.
+    """
+    Euler-Bernoulli beam under tension, pinned at both ends.
 
     omega_n^2 = [(n pi / L)^4 EI + (n pi / L)^2 T] / m.
     """
@@ -41,7 +45,8 @@ def tensioned_pinned_beam_hz(n_modes: int, length_m: float, bending_stiffness_n_
 def timoshenko_cantilever_hz(n_modes: int, length_m: float, young_pa: float, shear_pa: float,
                              shear_factor: float, density: float, area_m2: float,
                              inertia_m4: float) -> np.ndarray:
-    """Exact bending frequencies of a clamped-free Timoshenko beam.
+    """
+    Exact bending frequencies of a clamped-free Timoshenko beam.
 
     Solves kGA (W'' - Psi') + rho A w^2 W = 0, EI Psi'' + kGA (W' - Psi) + rho I w^2 Psi = 0
     with W = Psi = 0 at x = 0 and EI Psi' = kGA (W' - Psi) = 0 at x = L, by scanning the

@@ -2,7 +2,7 @@
 
 
 def assert_one_line(result, *words):
-    """A refused input: exit status 2 and one stderr line 'drill-twin: ...' holding ``words``."""
+    """Assert a refused input: exit status 2, one stderr line 'drill-twin: ...' with ``words``."""
     lines = result.stderr.strip().splitlines()
     assert result.returncode == 2 and len(lines) == 1, result.stderr[-3000:]
     assert lines[0].startswith('drill-twin: '), lines[0]

@@ -21,7 +21,8 @@ os.environ.setdefault('RERUN_TELEMETRY', '0')
 
 
 def ros_variables(folder: Path, domain_id: int) -> dict[str, str]:
-    """Environment of an isolated ROS 2 run.
+    """
+    Environment of an isolated ROS 2 run.
 
     Its own domain, localhost only, FastDDS, the ROS logs and rerun's ids under ``folder``.
     """
@@ -33,7 +34,7 @@ def ros_variables(folder: Path, domain_id: int) -> dict[str, str]:
 
 @contextlib.contextmanager
 def ros_environment(folder: Path, domain_id: int):
-    """This process in :func:`ros_variables`; the environment is restored afterwards."""
+    """Run this process in :func:`ros_variables`; the environment is restored afterwards."""
     values = ros_variables(folder, domain_id)
     saved = {key: os.environ.get(key) for key in values}
     os.environ.update(values)
@@ -48,12 +49,12 @@ def ros_environment(folder: Path, domain_id: int):
 
 
 def default_raw() -> dict:
-    """The built-in defaults as a plain mapping (a fresh copy)."""
+    """Return the built-in defaults as a plain mapping (a fresh copy)."""
     return copy.deepcopy(_read_yaml(default_config_path()))
 
 
 def config_with(changes: dict):
-    """The defaults with ``changes`` merged in (lists replaced whole)."""
+    """Return the defaults with ``changes`` merged in (lists replaced whole)."""
     return build_config(merge(default_raw(), changes), source='<test>')
 
 

@@ -12,7 +12,8 @@ N_NODES = 57
 
 def snapshot(t: float, *, stations: int = 2, events=(), depth0: float = 1600.0,
              ensemble: bool = True, ensemble_lag_s: float = 0.01) -> TwinSnapshot:
-    """The twin at time t (s).
+    """
+    Return the twin at time t (s).
 
     Bit speed 5 + 4 sin(t) rad/s, ROP 2 mm/s, WOB -100 kN, TOB -3 kN m, station k at (v, w) =
     (0.01 (k + 1) cos t, 0.01 (k + 1) sin t) m, node 10 on the wall with 2.5 kN.

@@ -1,4 +1,5 @@
-"""A synthetic log of every twin topic, for the recording and viewer tests (a test helper).
+"""
+A synthetic log of every twin topic, for the recording and viewer tests (a test helper).
 
 The messages are built by the node's own code (:mod:`drill_twin.ros.messages`) from
 closed-form signals that look like a drill string in stick-slip (bit speed oscillating
@@ -93,7 +94,8 @@ def _snapshot(t: float, step: int, stations, state: dict) -> SimpleNamespace:
 def synthetic_messages(duration_s: float = 10.0, rate_hz: float = 100.0,
                        stations_m: Iterable[float] = DEFAULT_STATIONS_M,
                        start_ns: int = DEFAULT_START_NS) -> Iterator[TimedMessage]:
-    """Yield messages of every twin topic in time order.
+    """
+    Yield messages of every twin topic in time order.
 
     State topics, KPIs, the ensemble and /clock come at ``rate_hz``; commands and an event
     (/diagnostics) at 1 Hz; a /rosout line every 2 s.

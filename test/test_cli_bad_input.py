@@ -1,4 +1,5 @@
-"""Bad input to the command line.
+"""
+Bad input to the command line.
 
 One line ``drill-twin: ...`` naming the file or option, the key and the problem, and exit status
 2; never a traceback (issue 9, item 5).
@@ -87,7 +88,10 @@ def test_a_configuration_that_cannot_be_integrated_is_refused_at_start(tmp_path,
 
 
 def test_a_run_that_diverges_after_the_preflight_is_one_line(tmp_path):
-    """The pre-flight's short run is shortened to nothing, so that the run itself meets the
+    """
+    A Newton failure at the run's first step is caught by the command, not the check.
+
+    The pre-flight's short run is shortened to nothing, so that the run itself meets the
     failure of a Newton solve allowed one iteration at an unreachable tolerance (even on
     sub-steps down to dt/16) at its first step: the command catches it, not the check.
     """

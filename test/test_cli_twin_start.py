@@ -1,4 +1,5 @@
-"""Start-up of ``drill-twin twin``.
+"""
+Start-up of ``drill-twin twin``.
 
 Node parameters checked before the node starts (one line, exit 2, whether given as options,
 ``-p`` rules or in a params file), rclpy's own refusal caught as a backstop, and SIGINT/SIGTERM
@@ -55,7 +56,8 @@ def test_out_of_range_node_parameters_are_one_line(tmp_path, env, args, words):
 
 
 def test_rclpy_refusing_a_parameter_is_one_line_too(tmp_path, env):
-    """The node run directly (as a program embedding it would), past the command line's checks.
+    """
+    The node run directly (as a program embedding it would), past the command line's checks.
 
     Rclpy's InvalidParameterValueException becomes one line and status 2.
     """
@@ -116,7 +118,10 @@ def _signal_mask(pid: int, field: str) -> int:
 @pytest.mark.skipif(not Path('/proc/self/status').exists(), reason='needs /proc (Linux)')
 @pytest.mark.parametrize('number', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
 def test_a_stop_signal_during_start_up_stops_the_twin_cleanly(tmp_path, number):
-    """Started as a non-interactive shell starts a background job (SIGINT ignored), the twin
+    """
+    A stop signal during start-up stops the twin at once, with status 0.
+
+    Started as a non-interactive shell starts a background job (SIGINT ignored), the twin
     catches SIGINT and SIGTERM before it has even loaded rclpy, and a signal then (0.1 s
     after the start at the earliest) stops it at once with status 0 and no traceback.
     """

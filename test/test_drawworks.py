@@ -1,4 +1,5 @@
-"""The drawworks (issue 13, docs/DRIVES.md).
+"""
+The drawworks (issue 13, docs/DRIVES.md).
 
 Block-velocity input with the hook load measured, static equilibrium of the string against its
 weight, the autodriller's step response against the linearised closed form, and run-time
@@ -34,7 +35,8 @@ def _steady_rop(config):
 
 
 def test_block_velocity_holds_the_string_in_static_equilibrium():
-    """The block lowered at the steady ROP.
+    """
+    The block lowered at the steady ROP.
 
     The measured hook load is the string's weight as the model counts it (envelope: W = H_S -
     f_c) minus the WOB, within the damping drag.
@@ -74,7 +76,8 @@ def _equivalent_stiffness(config) -> float:
 
 
 def test_autodriller_step_response_on_wob_matches_the_linearised_loop():
-    """WOB' = k_eq (v_b - ROP(WOB)), v_b = v_I + K_p e, v_I' = K_i e, e = WOB_sp - WOB.
+    """
+    WOB' = k_eq (v_b - ROP(WOB)), v_b = v_I + K_p e, v_I' = K_i e, e = WOB_sp - WOB.
 
     K_eq the line and the string's axial stiffness in series, ROP the bit-rock law linearised at
     the start. Within 5 % of the 20 kN step.

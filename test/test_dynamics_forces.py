@@ -1,4 +1,5 @@
-"""The non-linear forces against independent derivations from their energies and laws.
+"""
+The non-linear forces against independent derivations from their energies and laws.
 
 f_se must be minus the gradient of the discrete non-linear strain energy, and f_ke must follow
 from the coupling term of the kinetic energy by Lagrange's equations; both derivatives are
@@ -39,7 +40,7 @@ def _nonlinear_strain_energy(system, u):
 
 
 def _random_displacement(system, rng, scale):
-    """A smooth random field: random modal amplitudes, large enough to be non-linear."""
+    """Return a smooth random field: random modal amplitudes, large enough to be non-linear."""
     q = rng.normal(size=(1, system.size)) * scale
     return system.physical(q)[0]
 
@@ -202,8 +203,10 @@ def test_lift_off_removes_the_bit_forces(law):
 
 @pytest.mark.parametrize('germ', [None, np.array([[[1.05, 0.08], [0.08, 0.93]]] * 4)])
 def test_bit_rock_jacobian(law, germ):
-    """Analytic Jacobian against complex-step derivatives of the (random) law, also inside
-    the blend near ROP = 0.
+    """
+    Analytic Jacobian against complex-step derivatives of the (random) law.
+
+    Also inside the blend near ROP = 0.
     """
     rop = np.array([2.6e-3, 1.1e-3, 3.3e-3, 8e-5])
     omega = np.array([5.2, 0.7, 9.0, 4.0])

@@ -1,7 +1,9 @@
-"""The compiled force kernels against a straightforward numpy implementation of the same
-formulas, on random batches (kept here, not in the package: the package has one
-implementation). The formulas themselves are checked against the energies in
-test_dynamics_forces.py.
+"""
+The compiled force kernels against a straightforward numpy implementation.
+
+The numpy implementation of the same formulas, on random batches, is kept here, not in the
+package (the package has one implementation). The formulas themselves are checked against the
+energies in test_dynamics_forces.py.
 """
 from __future__ import annotations
 
@@ -81,8 +83,10 @@ def reference_contact(system, k, mu, eps, fields):
 # -- random batches ---------------------------------------------------------------------
 
 def _random_fields(system, rng, members, lateral_m):
-    """A batch with large random modal amplitudes, spinning, laterally deflected by up to
-    ``lateral_m`` (some nodes beyond the clearance), random accelerations.
+    """
+    Return a batch with large random modal amplitudes, spinning, with random accelerations.
+
+    Laterally deflected by up to ``lateral_m`` (some nodes beyond the clearance).
     """
     n = system.size
     q = rng.normal(size=(members, n)) * rng.uniform(0.5, 20.0, size=(members, 1))
@@ -120,7 +124,10 @@ def test_kernels_match_the_numpy_reference(system, members):
 
 
 def test_the_assembly_is_the_sum_of_the_kernels_and_reuses_its_work_arrays(system):
-    """NonlinearForces sums the kernels and the bit law, projects on the basis, and its
+    """
+    The assembly sums the kernels and the bit law; its results survive the next evaluation.
+
+    NonlinearForces sums the kernels and the bit law, projects on the basis, and its
     results are not overwritten by the next evaluation of the same batch size.
     """
     forces = NonlinearForces(system)
@@ -214,8 +221,10 @@ def reference_law(law, rop, omega, germ):
 
 @pytest.mark.parametrize('random', [False, True])
 def test_the_law_kernel_matches_the_numpy_reference(default_config, random):
-    """Random points over cutting, lift-off, ROP near and below 0, omega near, at and below 0
-    (the floor of 1/omega^2), with and without random germs.
+    """
+    Random points over cutting, lift-off, ROP near and below 0, omega near, at and below 0.
+
+    Omega below 0 meets the floor of 1/omega^2; with and without random germs.
     """
     from drill_twin.dynamics.bit_rock import BitRockLaw
     law = BitRockLaw.from_config(default_config.bit_rock)
@@ -250,8 +259,10 @@ def test_the_law_kernel_matches_the_numpy_reference(default_config, random):
 # -- the compiled step and the observer -----------------------------------------------------
 
 def test_observe_reads_the_fields_of_the_state(default_config):
-    """Observation's stations, hook and top torque against the field-wise vectors Phi q
-    (with the driven rotation on theta_x), computed here directly.
+    """
+    Observation's stations, hook and top torque against the field-wise vectors Phi q.
+
+    Phi q with the driven rotation on theta_x, computed here directly.
     """
     from drill_twin.dynamics.simulator import Simulator
     simulator = Simulator(default_config, members=3,
@@ -288,8 +299,11 @@ def test_observe_reads_the_fields_of_the_state(default_config):
 
 
 def test_a_step_with_wall_contact_matches_single_member_steps(default_config):
-    """The compiled step on a batch with members pressed on the wall (Woodbury correction
-    of some members only) equals each member stepped alone, and conserves the touch flags.
+    """
+    The compiled step with members pressed on the wall equals each member stepped alone.
+
+    The batch has members pressed on the wall (Woodbury correction of some members only); the
+    step also conserves the touch flags.
     """
     from drill_twin.dynamics.simulator import Simulator
     members = 3

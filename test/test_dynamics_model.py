@@ -77,7 +77,8 @@ def _energy_history(model, system, dt, spin_rad_per_s, steps):
 
 @pytest.mark.parametrize('spin', [0.0, 5.2])
 def test_undamped_free_string_conserves_energy(spin):
-    """No damping, fluid, contact, bit-rock law or imposed rotation.
+    """
+    No damping, fluid, contact, bit-rock law or imposed rotation.
 
     The energy of the prestressed string with its finite-strain and kinetic-coupling forces (a
     freely spinning string for the latter) is conserved up to the trapezoidal rule's
@@ -94,7 +95,8 @@ def test_undamped_free_string_conserves_energy(spin):
 # -- steady state and stationary regime --------------------------------------------------------
 
 def test_steady_drilling_agrees_with_the_bit_rock_law():
-    """Below the velocity-weakening branch (omega < 2 sqrt(3) e) drilling is steady.
+    """
+    Below the velocity-weakening branch (omega < 2 sqrt(3) e) drilling is steady.
 
     The bit turns with the top, and ROP, WOB, TOB and the top torque obey the law and torque
     balance.
@@ -122,7 +124,7 @@ def test_steady_drilling_agrees_with_the_bit_rock_law():
 
 @pytest.fixture(scope='module')
 def paper_run():
-    """The paper's operating point, 120 s."""
+    """Return the run at the paper's operating point, 120 s."""
     return load_config(), run_simulation(load_config(), 120.0)
 
 
@@ -189,8 +191,10 @@ def test_time_step_convergence_is_second_order():
                                          ('axial_modes', (1, 3)),
                                          ('lateral_modes', (40, 158))])
 def test_stick_slip_cycle_is_converged_in_the_number_of_modes(key, counts):
-    """The stationary stick-slip cycle (bit speed swinging about 2.1-8.5 rad/s) moves by less
-    than 0.01 rad/s as modes are added (measured: 0.003 from 2 to 16 torsional modes).
+    """
+    The stationary stick-slip cycle moves by less than 0.01 rad/s as modes are added.
+
+    The bit speed swings about 2.1-8.5 rad/s; measured: 0.003 from 2 to 16 torsional modes.
     Pointwise histories are not compared: the paper's untwisted start is a torque step at
     the bit, a wave that a modal sum resolves slowly, so the first second differs.
     """
@@ -209,8 +213,11 @@ def test_stick_slip_cycle_is_converged_in_the_number_of_modes(key, counts):
 # -- contact and failure ----------------------------------------------------------------------
 
 def test_contact_keeps_the_string_inside_the_clearance():
-    """Sent at the wall in its first lateral mode (free amplitude 0.15 m against a clearance
-    of 86.5 mm), the string bounces off with a penetration of a fraction of a millimetre.
+    """
+    Sent at the wall in its first lateral mode, the string bounces off.
+
+    Free amplitude 0.15 m against a clearance of 86.5 mm; the string bounces off with a
+    penetration of a fraction of a millimetre.
     """
     config = load_config(None, ['initial_conditions.lateral_deflection_m=0'])
     simulator = Simulator(config)

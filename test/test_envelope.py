@@ -1,4 +1,5 @@
-"""The model never diverges in the driller's envelope (issue 10).
+"""
+The model never diverges in the driller's envelope (issue 10).
 
 The envelope: top-drive speed 0 ... 30 rad/s (0: stopped with the bit on bottom, then
 restarted), hook load from the whole string's weight (bit lifted) down to WOB 300 kN, step
@@ -48,7 +49,8 @@ def _random_problems(rng, m):
 
 @pytest.mark.parametrize('delta', [0.0, 0.1, 0.3])
 def test_bit_equation_is_solved_everywhere(law, delta):
-    """Random right-hand sides over lift-off, landing, rest, backward rotation and cutting.
+    """
+    Random right-hand sides over lift-off, landing, rest, backward rotation and cutting.
 
     Every member gets a finite solution of both equations, on the law's graph.
     """
@@ -77,7 +79,8 @@ def test_bit_equation_is_solved_everywhere(law, delta):
 
 
 def test_backward_rotation_is_resisted(law):
-    """The regularised law as written for omega < 0.
+    """
+    The regularised law as written for omega < 0.
 
     The cutting rate is even in omega (R ~ omega^2 near 0), the torque odd and opposed to the
     rotation.
@@ -111,8 +114,11 @@ def test_torque_is_continuous_at_lift_off_and_at_the_threshold(law):
 
 
 def test_random_law_is_continuous_at_zero_speed(law):
-    """Along the graph (ROP = R(f, omega)) the random forces go to the mean ones as omega -> 0+
-    (the blend in R; the previous blend in ROP left G12 sqrt(f t ROP / omega) unbounded).
+    """
+    Along the graph the random forces go to the mean ones as omega -> 0+.
+
+    The graph is ROP = R(f, omega); the blend is in R (the previous blend in ROP left
+    G12 sqrt(f t ROP / omega) unbounded).
     """
     germ = np.array([[[0.8, -0.25], [-0.25, 1.2]]])
     force = np.array([-1.5e5])
@@ -135,7 +141,7 @@ def system():
 
 
 def _failing(step, member):
-    """A full-dt step that reports member ``member`` as failed."""
+    """Return a full-dt step that reports member ``member`` as failed."""
     def wrapped(state, speed, hook):
         new, result = step(state, speed, hook)
         converged = result.converged.copy()
@@ -187,18 +193,18 @@ def test_only_a_member_that_fails_on_dt_over_16_raises(system):
 # -- runs through the envelope ---------------------------------------------------------------
 
 def _weight(simulator):
-    """The string's weight as the model counts it: the hook load with zero WOB (N)."""
+    """Return the string's weight as the model counts it: the hook load with zero WOB (N)."""
     return (simulator.system.model.prestress.hook_load_n
             - simulator.config.bit_rock.static_weight_on_bit_n)
 
 
 def _wob_hook(simulator, wob_n):
-    """The hook load that gives a static weight on bit of ``wob_n`` (N, > 0)."""
+    """Return the hook load that gives a static weight on bit of ``wob_n`` (N, > 0)."""
     return _weight(simulator) - wob_n
 
 
 def _germs(delta, members, seed):
-    """The mean model first, then germs of dispersion delta, the largest |G12| included."""
+    """Return the mean model first, then germs of dispersion delta, the largest |G12| included."""
     rng = np.random.default_rng(seed)
     pool = sample_germ(delta, rng, 200)
     order = np.argsort(-np.abs(pool[:, 0, 1]))
@@ -246,7 +252,10 @@ class EnvelopeRun:
 
 @pytest.mark.parametrize('dt', [0.01, 0.005])
 def test_scripted_sweep_of_the_envelope(system, dt):
-    """Drill at the paper's point, then at 30 rad/s with WOB 300 kN, at 15 rad/s with
+    """
+    No step fails over a tour of drilling, backward rotation, restart, lift-off, set-down.
+
+    Drill at the paper's point, then at 30 rad/s with WOB 300 kN, at 15 rad/s with
     WOB 250 kN (the bit turns backwards: the reported failure), stop on bottom and restart,
     lift the bit off with the whole weight on the hook, set it down, drill: no step of the
     mean model or of the germs at delta = 0.3 fails even on dt/16, all values finite, the
@@ -278,8 +287,10 @@ def test_scripted_sweep_of_the_envelope(system, dt):
        commands=st.lists(st.tuples(st.floats(0.0, 30.0), st.floats(-0.05, 3.0),
                                    st.floats(0.05, 0.6)), min_size=2, max_size=4))
 def test_random_command_sequences_inside_the_envelope(system, dt, delta, seed, commands):
-    """Top speed 0-30 rad/s and static WOB from -50 kN (the bit lifted: hook above the
-    weight) to 300 kN, held 0.05-0.6 s each, from a drilling start.
+    """
+    Top speed 0-30 rad/s and static WOB from -50 kN to 300 kN, from a drilling start.
+
+    At -50 kN the bit is lifted (hook above the weight); each is held 0.05-0.6 s.
     """
     config, reduced = system
     config = load_config(None, ['reduced_basis.lateral_modes=20',

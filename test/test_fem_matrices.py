@@ -27,7 +27,7 @@ def test_shape_functions_interpolate_nodal_values():
 
 
 def test_euler_bernoulli_limit_rotation_is_the_slope():
-    """phi = 0: theta_z = dv/dx and theta_y = -dw/dx everywhere."""
+    """With phi = 0: theta_z = dv/dx and theta_y = -dw/dx everywhere."""
     xi = np.linspace(0, 1, 7)
     rows = sf.field_rows(xi, np.array([5.0]), np.array([0.0]))
     np.testing.assert_allclose(rows.value[0, :, sf.FIELD_THETA_Z], rows.slope[0, :, sf.FIELD_V],
@@ -110,7 +110,7 @@ def test_mass_is_the_string_mass_and_definite(default_analysis, default_config):
 
 
 def test_fluid_added_mass_per_metre(default_analysis, default_config):
-    """int (M_f + chi rho_f A_o) dx for a rigid lateral translation (Eq. 19)."""
+    """Fluid mass: int (M_f + chi rho_f A_o) dx for a rigid lateral translation (Eq. 19)."""
     model = default_analysis[0]
     rho_f = default_config.fluid.density_kg_per_m3
     d_ch = default_config.borehole.diameter_m
@@ -147,8 +147,11 @@ def test_stiffness_is_semidefinite_and_tangent_definite(default_analysis):
 
 
 def test_fluid_coriolis_is_skew_but_for_jumps_of_its_coefficient(default_analysis):
-    """The gyroscopic term c int N^T N' dx does no work, except the point terms
-    (c_left - c_right) / 2 where c changes (section junction) or ends (top, bit).
+    """
+    The gyroscopic term c int N^T N' dx does no work, except the point terms.
+
+    The point terms (c_left - c_right) / 2 where c changes (section junction) or ends (top,
+    bit).
     """
     from drill_twin.fem.assembly import assemble_matrix
     from drill_twin.fem.fluid import coriolis_coefficient, fluid_coriolis_matrices

@@ -1,4 +1,5 @@
-"""The package's import graph: no cycles between modules, the core free of ROS and plotting.
+"""
+The package's import graph: no cycles between modules, the core free of ROS and plotting.
 
 Imports are read from the source (``ast``), at module level and inside functions alike, so a
 cycle hidden in a deferred import counts too.

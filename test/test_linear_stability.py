@@ -36,7 +36,8 @@ def one_mode():
 
 
 def test_without_the_bit_every_mode_has_its_rayleigh_damping():
-    """Without the bit (J = 0) every mode has its Rayleigh damping.
+    """
+    Without the bit (J = 0) every mode has its Rayleigh damping.
 
     Each elastic mode (pulsation w from the modal solver) has the roots of s^2 + (alpha + beta
     w^2) s + w^2; the rigid axial mode's rate decays at alpha.
@@ -87,7 +88,8 @@ def _closed_form(system, config, law, omega, wob):
 @pytest.mark.parametrize('omega, wob', [(3.0, 100e3), (5.215, 100e3), (10.0, 100e3),
                                         (6.0, 200e3), (15.0, 60e3), (20.0, 250e3)])
 def test_one_torsional_mode_follows_the_velocity_weakening_closed_form(one_mode, omega, wob):
-    """The lumped pendulum.
+    """
+    The lumped pendulum.
 
     Growth = -(c1 + phi_b^2 dT/domega|_WOB) / 2 (module docstring); the quasi-static axial
     motion is the only approximation: the axial eigenvalue is about -150 to -210 1/s against |s|
@@ -102,7 +104,8 @@ def test_one_torsional_mode_follows_the_velocity_weakening_closed_form(one_mode,
 
 
 def test_the_boundary_is_where_velocity_weakening_beats_the_damping(one_mode):
-    """At 100 kN the resisting torque peaks near 4 rad/s and weakens beyond.
+    """
+    At 100 kN the resisting torque peaks near 4 rad/s and weakens beyond.
 
     The closed form puts the boundary where -phi_b^2 dT/domega = c1; the linearisation changes
     sign there.
@@ -129,8 +132,11 @@ def test_stability_grid_matches_pointwise_results(one_mode):
 
 
 def test_steady_coordinates_are_an_equilibrium_of_the_simulation():
-    """Started from steady drilling with no perturbation, the simulated bit keeps the top's
-    speed, the law's ROP and the WOB set by the hook load (the hook-load balance).
+    """
+    Started from steady drilling with no perturbation, the simulated bit stays there.
+
+    It keeps the top's speed, the law's ROP and the WOB set by the hook load (the hook-load
+    balance).
     """
     config, system = _system('reduced_basis.torsional_modes=2', 'reduced_basis.axial_modes=2')
     law = BitRockLaw.from_config(config.bit_rock)
@@ -163,8 +169,11 @@ def _point_config(config, omega, hook):
 
 
 def test_a_small_perturbation_grows_in_the_simulation_at_the_linear_rate():
-    """The non-linear simulation (Newmark, exact bit solve) from steady drilling plus a
-    1 mrad/s kick: the bit-speed oscillation grows at the predicted rate and frequency.
+    """
+    The bit-speed oscillation grows at the predicted rate and frequency.
+
+    The non-linear simulation (Newmark, exact bit solve) from steady drilling plus a
+    1 mrad/s kick.
     """
     config, system = _system('reduced_basis.torsional_modes=2', 'reduced_basis.axial_modes=1',
                              'integration.time_step_s=0.01')

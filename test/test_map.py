@@ -37,8 +37,11 @@ def _set_options(overrides):
 
 @pytest.fixture(scope='module')
 def coarse_map():
-    """3 x 3 points across the linear boundary (stable at 3 rad/s and at 50 kN, unstable at
-    9-15 rad/s with 130-200 kN), 24 s each from steady drilling kicked by 0.5 rad/s.
+    """
+    Run 3 x 3 points across the linear boundary, 24 s each.
+
+    Stable at 3 rad/s and at 50 kN, unstable at 9-15 rad/s with 130-200 kN; each from steady
+    drilling kicked by 0.5 rad/s.
     """
     config = load_config(None, COARSE)
     spec = MapSpec(speeds_rad_per_s=(3.0, 9.0, 15.0), weights_on_bit_n=(50e3, 130e3, 200e3),
@@ -47,8 +50,10 @@ def coarse_map():
 
 
 def test_simulated_points_agree_with_the_linear_stability(coarse_map):
-    """Linearly stable points are steady (SSI < 0.05), unstable ones oscillate, but within one
-    grid step of the boundary; away from it both classes are represented.
+    """
+    Linearly stable points are steady (SSI < 0.05), unstable ones oscillate.
+
+    But within one grid step of the boundary; away from it both classes are represented.
     """
     verdicts = [row['linear_comparison'] for row in coarse_map.rows]
     assert 'disagree' not in verdicts and 'failed' not in verdicts
@@ -61,8 +66,10 @@ def test_simulated_points_agree_with_the_linear_stability(coarse_map):
 
 
 def test_the_limit_cycle_runs_at_the_first_torsional_mode(coarse_map):
-    """Unstable points oscillate near the frequency of the growing eigenvalue (the first
-    torsional mode, lowered by the stick phases as the severity grows).
+    """
+    Unstable points oscillate near the frequency of the growing eigenvalue.
+
+    That of the first torsional mode, lowered by the stick phases as the severity grows.
     """
     for row in coarse_map.rows:
         if not row['linearly_stable']:
@@ -71,7 +78,8 @@ def test_the_limit_cycle_runs_at_the_first_torsional_mode(coarse_map):
 
 
 def test_the_weight_on_bit_is_set_through_the_hook_load(coarse_map):
-    """Momentum balance of the axially free string.
+    """
+    Momentum balance of the axially free string.
 
     The mean WOB is W - H whatever the stick-slip (to the drag and the change of axial momentum
     over the window).
@@ -140,7 +148,8 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys, options, option):
 
 
 def test_cli_writes_the_map_and_a_process_pool_reproduces_an_in_process_run(tmp_path):
-    """The command's files and columns (the contract).
+    """
+    The command's files and columns (the contract).
 
     The same numbers from a worker process as from this process with the written config.yaml.
     """
@@ -175,8 +184,11 @@ def _numbers(path):
 
 
 def test_a_diverging_point_is_a_failed_row_not_a_crash(tmp_path):
-    """A point whose step cannot converge (one iteration allowed, an unreachable tolerance)
-    is written as NaN statistics with failed = 1 and the error; the others still run.
+    """
+    A point whose step cannot converge is written as failed; the others still run.
+
+    One iteration allowed, an unreachable tolerance: the point is written as NaN statistics
+    with failed = 1 and the error.
     """
     config = load_config(None, COARSE + ['integration.max_iterations=1',
                                          'integration.tolerance=1e-300'])

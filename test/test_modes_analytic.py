@@ -1,4 +1,5 @@
-"""Eigenfrequencies in the analytic limits, at the default mesh density, and their convergence.
+"""
+Eigenfrequencies in the analytic limits, at the default mesh density, and their convergence.
 
 The default string has 56 elements over 1600 m. The uniform strings below keep that density
 (56 equal elements of 28.6 m). On the default *graded* mesh (43.75 m pipe elements) the
@@ -57,7 +58,7 @@ def test_fixed_free_rod(kind, wave_speed):
 
 @pytest.mark.parametrize('ratio', [1.0, 0.2])
 def test_rod_with_rigid_tip_inertia(ratio):
-    """beta tan beta = mu with mu = (rod inertia) / (tip inertia), axial and torsional."""
+    """Solve beta tan beta = mu with mu = (rod inertia) / (tip inertia), axial and torsional."""
     mass = RHO * AREA * LENGTH / ratio
     polar = RHO * 2 * INERTIA * LENGTH / ratio
     config = _uniform_string(bit={'mass_kg': mass, 'polar_inertia_kg_m2': polar})

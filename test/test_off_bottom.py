@@ -1,4 +1,5 @@
-"""Off bottom and back: drill, pick up 2 m, rotate off bottom, set back down, drill again.
+"""
+Off bottom and back: drill, pick up 2 m, rotate off bottom, set back down, drill again.
 
 The hook load is the only axial command of the model. A driller moves the block at a speed;
 here a PI loop on the top's axial velocity sets the hook load (without knowing what the
@@ -126,8 +127,11 @@ def test_the_hole_never_gets_shallower_and_the_bit_went_up_two_metres(sequence):
 
 
 def test_off_bottom_the_hook_carries_the_strings_weight(sequence):
-    """Hovering, the hook load found by the velocity loop (which does not know the weight)
-    is the string's weight as the model counts it, H_S - f_c, within the damping drag.
+    """
+    Hovering, the hook load found by the velocity loop is the string's weight.
+
+    The velocity loop does not know the weight; the hook load is the string's weight as the
+    model counts it, H_S - f_c, within the damping drag.
     """
     config, simulator, table, marks, weight, _ = sequence
     model = simulator.system.model
@@ -144,7 +148,8 @@ def test_off_bottom_the_hook_carries_the_strings_weight(sequence):
 
 
 def test_the_landing_is_detected(sequence):
-    """The bit tags bottom when it reaches the hole bottom.
+    """
+    The bit tags bottom when it reaches the hole bottom.
 
     Landing turning backwards (the torsional swing of a string spun off bottom) it rests on the
     rock, the string's axial wave bounces it a few times, then it stays on bottom.
@@ -159,7 +164,10 @@ def test_the_landing_is_detected(sequence):
 
 
 def test_drilling_resumes_at_the_same_stationary_rop(sequence):
-    """Before the pick-up the bit drills steadily at the law's ROP for the top speed and the
+    """
+    The bit drills at the law's ROP before the pick-up and, on average, after the set-down.
+
+    Before the pick-up the bit drills steadily at the law's ROP for the top speed and the
     weight on bit; after the set-down it drills at the same ROP on average (the torsional swing
     of the landing still decays: 8 % rms 20 s later, damped by the law).
     """

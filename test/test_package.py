@@ -29,7 +29,7 @@ def test_layout():
 
 @pytest.fixture(scope='module')
 def installed_prefix(tmp_path_factory):
-    """A real (non-editable) pip install of the package into a fresh prefix."""
+    """Install the package for real (non-editable) with pip into a fresh prefix."""
     prefix = tmp_path_factory.mktemp('prefix')
     before = _installed_location()
     # --ignore-installed: without it pip first uninstalls the copy in the running
@@ -97,7 +97,8 @@ def test_package_xml_declares_what_the_node_imports():
 
 
 def test_launch_file_is_installed_and_starts_the_twin(installed_prefix, monkeypatch):
-    """``ros2 launch drill_twin twin.launch.py``.
+    """
+    ``ros2 launch drill_twin twin.launch.py``.
 
     The launch file is installed, and its description starts the ``twin`` executable of this
     package with the installed parameters.

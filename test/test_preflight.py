@@ -1,4 +1,5 @@
-"""Pre-flight check (drill_twin.dynamics.preflight).
+"""
+Pre-flight check (drill_twin.dynamics.preflight).
 
 The default configuration passes with the operating point the bit-rock law and the string's
 weight give; laws, loads and models that cannot be integrated are refused with one line.
@@ -90,7 +91,8 @@ def test_a_hook_load_above_the_weight_is_refused(default_analysis):
 
 
 def test_a_model_that_fails_at_once_is_refused_by_the_short_run():
-    """A Newton solve allowed one iteration at an unreachable tolerance.
+    """
+    A Newton solve allowed one iteration at an unreachable tolerance.
 
     The operating point is the paper's (it passes), but the first step fails even on sub-steps
     down to dt/16. (a4 = 7e8 N rad, whose bit equation had no solution at the first step,

@@ -1,4 +1,5 @@
-"""Twin logs as rosbag2 bags.
+"""
+Twin logs as rosbag2 bags.
 
 Time-bounded MCAP splits and metadata.yaml, read back by the project's reader and by three
 independent ones (mcap, mcap_ros2, rosbags), also after the writer was killed; ``drill-twin
@@ -46,7 +47,8 @@ def child_env(tmp_path: Path) -> dict:
 
 @pytest.fixture(scope='module')
 def bag(tmp_path_factory):
-    """Write a bag of every twin topic over 3.5 s split every second.
+    """
+    Write a bag of every twin topic over 3.5 s split every second.
 
     Returns (path, expected messages).
     """
@@ -155,7 +157,8 @@ time.sleep(600)            # killed here, the last 30 messages in an open chunk
 
 @pytest.fixture(scope='module')
 def killed_bag(tmp_path_factory):
-    """Kill a bag's writer (zstd chunks) mid-split after 3 complete splits.
+    """
+    Kill a bag's writer (zstd chunks) mid-split after 3 complete splits.
 
     Returns (path, messages known flushed).
     """

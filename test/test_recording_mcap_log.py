@@ -228,7 +228,8 @@ def test_serialized_write_matches(tmp_path):
 
 
 def test_chunks_are_flushed_by_log_time_however_fast_the_writer(tmp_path):
-    """A twin far faster than real time.
+    """
+    A twin far faster than real time.
 
     One chunk per flush interval of log time, written within microseconds of wall time (so the
     wall clock alone would never flush).
@@ -347,7 +348,8 @@ def test_compressed_chunks_and_their_cut_prefix(tmp_path, compression):
 
 
 def test_chunks_are_compressed_at_the_chosen_zstd_level(tmp_path):
-    """Each zstd chunk is the frame zstd makes of its records at ZSTD_LEVEL (not mcap's level 3).
+    """
+    Each zstd chunk is the frame zstd makes of its records at ZSTD_LEVEL (not mcap's level 3).
 
     The stand-in for mcap.writer's zstandard module is in effect.
     """

@@ -1,4 +1,5 @@
-"""The finite-strain energy of the beam against an independent derivation from Eq. 14-16.
+"""
+The finite-strain energy of the beam against an independent derivation from Eq. 14-16.
 
 sympy builds the 3D displacement field of the cross-section, differentiates it, forms the
 Green-Lagrange strains and the energy density; the density is integrated numerically over
@@ -92,7 +93,8 @@ def test_energy_and_stresses_match_the_3d_derivation(seed):
 
 
 def test_agrees_with_the_printed_eq15_where_it_should():
-    """Eq. 15 as printed and the kinematics used here agree where the section is not twisted.
+    """
+    Eq. 15 as printed and the kinematics used here agree where the section is not twisted.
 
     They give the same energy when the section is not twisted (theta_x = theta_x' = 0), and the
     same tangent (so the same [K] and [K_g]) about an axial prestress; they differ only in the
@@ -124,7 +126,8 @@ def test_agrees_with_the_printed_eq15_where_it_should():
 
 
 def test_printed_eq15_is_not_invariant_under_rigid_rotation():
-    """Why Eq. 15 is not taken literally.
+    """
+    Why Eq. 15 is not taken literally.
 
     A bent, shear-free beam spun rigidly about its axis would store energy that depends on the
     spin angle (docs/MODEL-CHOICES.md).
@@ -153,7 +156,8 @@ def test_linear_part_is_the_timoshenko_beam():
 
 
 def test_geometric_stiffness_terms_of_an_axial_prestress():
-    """Geometric stiffness of an axial prestress N = EA e0 (MODEL.md point 3).
+    """
+    Geometric stiffness of an axial prestress N = EA e0 (MODEL.md point 3).
 
     3N on u' and the bending rotations, N on v'^2 and w'^2, N I_p/A on theta_x'^2 (N = EA e0),
     to first order in the prestrain e0.

@@ -1,4 +1,5 @@
-"""Style as ament's linters check it: flake8 (99 columns) and pep257 docstrings.
+"""
+Style as ament's linters check it: flake8 (99 columns) and pep257 docstrings.
 
 The settings are ament_flake8's and ament_pep257's (ROS 2 Jazzy): flake8 with
 max-line-length 99 and its extend-ignore list, over the package and the tests (flake8-docstrings

@@ -1,4 +1,5 @@
-"""The default configuration reproduces Table 1 of the paper (MODEL.md's reading).
+"""
+The default configuration reproduces Table 1 of the paper (MODEL.md's reading).
 
 The reference is Table 1 as printed in Ritto, Soize & Sampaio (2009), copied here by hand
 (rank or pair of ranks, eigenfrequency in Hz, type); the package's own copy

@@ -1,4 +1,5 @@
-"""The dynamic top drive against closed forms (issue 13, docs/DRIVES.md).
+"""
+The dynamic top drive against closed forms (issue 13, docs/DRIVES.md).
 
 The string's torque predicted one step ahead, the torsional eigenfrequencies of the string with
 the drive's inertia and the PI loop's stiffness at the top, the PI step response on a rigid
@@ -34,10 +35,12 @@ def _simulator(overrides):
 
 
 def shaft_frequencies_hz(config, inertia, spring, f_max_hz, bit_inertia=0.0):
-    """Torsional eigenfrequencies (Hz) of the sections of ``config`` as continuous shafts
-    (stiffness k_s G I_p, MODEL.md), an inertia ``inertia`` (kg m^2) on a spring ``spring``
-    (N m/rad) to ground at the top and ``bit_inertia`` at the free bit: the roots of the
-    transfer-matrix frequency equation, bracketed on a fine grid.
+    """
+    Return the torsional eigenfrequencies (Hz) of the sections of ``config`` as shafts.
+
+    The sections as continuous shafts (stiffness k_s G I_p, MODEL.md), an inertia ``inertia``
+    (kg m^2) on a spring ``spring`` (N m/rad) to ground at the top and ``bit_inertia`` at the
+    free bit: the roots of the transfer-matrix frequency equation, bracketed on a fine grid.
     """
     def bit_residual(omega):
         theta, torque = 1.0, spring - omega ** 2 * inertia
@@ -96,7 +99,8 @@ def test_bad_drive_values_are_refused_naming_the_key(item, key):
 
 
 def test_the_predicted_string_torque_is_the_simulators_for_a_linear_string():
-    """The torsional block is linear here.
+    """
+    The torsional block is linear here.
 
     The one-step predictor must replay the simulator's Newmark step exactly (the coupling then
     has no lag).
@@ -117,7 +121,8 @@ def test_the_predicted_string_torque_is_the_simulators_for_a_linear_string():
 
 
 def test_eigenfrequencies_with_the_drive_inertia_and_pi_stiffness_match_the_shaft():
-    """An integral-only loop is a torsional spring K_i to the set-point angle.
+    """
+    An integral-only loop is a torsional spring K_i to the set-point angle.
 
     The string with J_d on that spring at the top, free at the bit. The frequencies measured
     from the simulated free response (matrix pencil on the top speed) match the continuous
@@ -150,7 +155,8 @@ def _rigid_string(dt, kp, ki, inertia):
 
 
 def test_pi_step_response_on_a_rigid_string_matches_the_closed_form():
-    """J e'' + K_p e' + K_i e = 0 for the speed error e, J = J_d + J_s.
+    """
+    J e'' + K_p e' + K_i e = 0 for the speed error e, J = J_d + J_s.
 
     The drive's backward-Euler step converges to it at first order.
     """
@@ -197,9 +203,11 @@ def test_the_motor_torque_is_limited_and_the_integral_does_not_wind_up():
 
 
 def test_energy_balance_over_a_stick_slip_cycle():
-    """Motor work + work of the bit = change of drive and string torsional energy +
-    dissipation, over one stick-slip cycle of the paper's string (lateral motion off),
-    within 1 % of the motor work.
+    """
+    Motor work + work of the bit = change of torsional energy + dissipation.
+
+    The change of drive and string torsional energy plus dissipation, over one stick-slip
+    cycle of the paper's string (lateral motion off), within 1 % of the motor work.
     """
     simulator = _simulator([
         'physics.contact=false', 'physics.kinetic_coupling=false',
@@ -225,7 +233,8 @@ def test_energy_balance_over_a_stick_slip_cycle():
 
 
 def test_the_simulator_attaches_the_configured_drive_and_a_failed_step_is_undone():
-    """Built from a config with ``top_drive.mode: dynamic`` the simulator drives the dynamic drive.
+    """
+    Built from a config with ``top_drive.mode: dynamic`` the simulator drives the dynamic drive.
 
     The simulator drives its top with the dynamic drive; the speed set back after a failed step
     restores the drive's state.

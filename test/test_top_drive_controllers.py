@@ -1,4 +1,5 @@
-"""Stick-slip controllers on the dynamic top drive (issue 13, docs/DRIVES.md).
+"""
+Stick-slip controllers on the dynamic top drive (issue 13, docs/DRIVES.md).
 
 The reflection of a torsional pulse at the top, measured at a station of a long uniform pipe.
 """
@@ -67,8 +68,11 @@ def test_the_configuration_picks_the_controller(default_config):
 @pytest.mark.parametrize('controller, low, high', [('stiff', 0.9, 1.1),
                                                    ('impedance', 0.0, 0.1)])
 def test_reflection_of_a_torsional_pulse_at_the_top(tmp_path, controller, low, high):
-    """|r| about 1 at a stiff drive (a fixed end inverts the wave), below 0.1 when the drive
-    is a damper matched to the pipe's impedance.
+    """
+    Reflection |r| about 1 at a stiff drive, below 0.1 at a matched damper.
+
+    A fixed end inverts the wave; below 0.1 when the drive is a damper matched to the pipe's
+    impedance.
     """
     path = tmp_path / 'pipe.yaml'
     path.write_text(PIPE)
@@ -129,7 +133,8 @@ def _system(config):
 
 
 def test_linear_stability_with_one_mode_is_the_closed_form():
-    """One mass-normalised torsional mode at the imposed speed.
+    """
+    One mass-normalised torsional mode at the imposed speed.
 
     S^2 + (c_1 + phi_b^2 D) s + w_1^2 = 0, growth rate -(c_1 + phi_b^2 D) / 2 when it
     oscillates.
@@ -148,7 +153,10 @@ def test_linear_stability_with_one_mode_is_the_closed_form():
 
 
 def test_a_stiff_drive_is_the_kinematic_one_and_the_torque_feedback_stabilises_100_kn():
-    """At the paper's point (velocity weakening D = -179 N m s/rad) the kinematic and stiff
+    """
+    At the paper's point soft_torque and impedance make the stick-slip decay.
+
+    At the paper's point (velocity weakening D = -179 N m s/rad) the kinematic and stiff
     drives grow (stick-slip) at the same rate; soft_torque and impedance make it decay.
     """
     from drill_twin.dynamics.drive_stability import (bit_torque_slope_nm_s_per_rad,

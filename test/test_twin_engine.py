@@ -25,7 +25,8 @@ def _engine(config, members=4):
 
 
 def test_a_diverged_member_is_restarted_and_the_others_go_on(config):
-    """Corrupt one ensemble member's state.
+    """
+    Corrupt one ensemble member's state.
 
     Its next step fails for it alone; it is restarted from a safe state at its depth, the step
     is retried and time advances; the other members and the mean model are exactly as in an
@@ -58,7 +59,8 @@ def test_a_diverged_member_is_restarted_and_the_others_go_on(config):
 
 
 def test_an_ensemble_in_a_worker_process_computes_the_same_numbers(config):
-    """The worker process receives the reduced system built here.
+    """
+    The worker process receives the reduced system built here.
 
     Its members match the in-process ensemble bit for bit, one tick behind the mean model, under
     changing commands; the mean model does not depend on the ensemble at all.

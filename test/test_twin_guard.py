@@ -1,4 +1,5 @@
-"""Plausibility: the hook-load range derived from the string, the state guard, honest KPIs.
+"""
+Plausibility: the hook-load range derived from the string, the state guard, honest KPIs.
 
 Bounds are checked against closed forms of the string (weights, masses, drag) and against
 the configurations and commands that produced nonsense before (issue 9): a 3 MN hook load on a
@@ -41,8 +42,11 @@ def _advance(engine, steps):
 # -- the string's envelope, against closed forms ---------------------------------------------
 
 def test_envelope_of_a_dry_string_is_its_weight_mass_and_drag():
-    """Without fluid the string's weight is g sum(rho A L), its axial mass sum(rho A L) and
-    its drag alpha times that mass; the BHA (the collars) weighs g rho A_c L_c.
+    """
+    Without fluid the string's weight is g sum(rho A L).
+
+    Its axial mass is sum(rho A L) and its drag alpha times that mass; the BHA (the collars)
+    weighs g rho A_c L_c.
     """
     config = load_config(None, TWIN_STEP + ['physics.fluid=false'])
     envelope = StringEnvelope.of(Simulator(config).system)
@@ -74,7 +78,8 @@ def test_a_short_bha_caps_the_weight_on_bit():
 
 
 def test_the_weight_is_the_hook_load_of_zero_weight_on_bit(config):
-    """The stationary WOB is f_c + (H - H_S) (README).
+    """
+    The stationary WOB is f_c + (H - H_S) (README).
 
     Zero at H = W = H_S - f_c; the paper's string weighs 1.16 MN as the model counts it (steel
     and fluid).
@@ -109,7 +114,8 @@ def test_hook_loads_the_model_cannot_represent_are_refused(config):
 
 
 def test_the_highest_hook_load_lifts_the_string_no_faster_than_a_block(config):
-    """At the largest accepted hook load the string rises at most at the block speed.
+    """
+    At the largest accepted hook load the string rises at most at the block speed.
 
     The excess over the weight balanced by the axial drag (terminal speed dH / C = v_block).
     """
@@ -136,7 +142,8 @@ def test_the_highest_hook_load_lifts_the_string_no_faster_than_a_block(config):
 # -- the state guard -------------------------------------------------------------------------
 
 def test_a_hook_load_past_the_door_trips_the_guard_and_nothing_implausible_comes_out(config):
-    """3 MN sent straight to the simulator (as if the door were open).
+    """
+    3 MN sent straight to the simulator (as if the door were open).
 
     The mean model's steps break the speed bounds; each breach is an ERROR event, the mean model
     goes back to its last good state and restarts there; every snapshot stays in the hole at
@@ -164,7 +171,8 @@ def test_a_hook_load_past_the_door_trips_the_guard_and_nothing_implausible_comes
     ('bit_rock.a2_m_per_n_s=1.0', 'ROP 8.718e+04 m/s is beyond +-5 m/s'),
 ])
 def test_a_configuration_implausible_from_the_start_is_refused(override, words):
-    """The steady state of these bit-rock laws drills at metres or kilometres per second.
+    """
+    The steady state of these bit-rock laws drills at metres or kilometres per second.
 
     The engine refuses the configuration with one line instead of publishing it.
     """
@@ -176,7 +184,8 @@ def test_a_configuration_implausible_from_the_start_is_refused(override, words):
 
 
 def test_an_implausible_member_is_restarted_and_the_others_go_on(config):
-    """A finite but absurd axial speed in one ensemble member (10 m/s on the rigid mode).
+    """
+    A finite but absurd axial speed in one ensemble member (10 m/s on the rigid mode).
 
     Only that member is put back and restarted (a WARN), the other members and the mean model
     are exactly as in an undisturbed twin.
@@ -203,7 +212,8 @@ def test_an_implausible_member_is_restarted_and_the_others_go_on(config):
 
 
 def test_every_bound_of_the_guard_trips(config):
-    """Each bound on its own, on a converged state of one member.
+    """
+    Each bound on its own, on a converged state of one member.
 
     The lateral displacement beyond the clearance, the bit below the bottom of the hole, the
     kinetic energy.

@@ -56,7 +56,8 @@ def test_vanishing_dispersion_reproduces_the_mean_model(config):
 
 
 def test_the_identity_germ_is_the_mean_law(config):
-    """The study integrates its mean model as a batch member with [G] = I.
+    """
+    The study integrates its mean model as a batch member with [G] = I.
 
     That must be the mean law exactly, lift-off and Jacobian included, on and off the admissible
     set.
@@ -76,8 +77,11 @@ def test_the_identity_germ_is_the_mean_law(config):
 
 
 def test_the_mean_model_rides_with_the_first_chunk(config, serial_study):
-    """The study's mean model is the mean law's run (to the rounding of its batch), and the
-    first chunk's realizations are those of a chunk without it (to rounding).
+    """
+    The study's mean model is the mean law's run, and it leaves the realizations alone.
+
+    The mean model is the mean law's run (to the rounding of its batch), and the first chunk's
+    realizations are those of a chunk without it (to rounding).
     """
     spec = _spec()
     alone = run_chunk(json.dumps(config_to_dict(config)), spec, (0,), mean_model=False)
@@ -156,7 +160,8 @@ def test_same_results_on_a_dask_cluster(config, one_worker_study):
 
 
 def test_a_realization_depends_on_its_index_not_on_the_study(config, serial_study):
-    """Realization j draws its germ from the stream (seed, j).
+    """
+    Realization j draws its germ from the stream (seed, j).
 
     A larger study starts the same, a batch of another size changes it only by rounding, another
     seed changes it.
@@ -175,7 +180,8 @@ def test_a_realization_depends_on_its_index_not_on_the_study(config, serial_stud
 
 
 def test_mean_square_convergence_of_a_spinning_string():
-    """Eq. 54 with U the driven rotation alone.
+    """
+    Eq. 54 with U the driven rotation alone.
 
     int sum_nodes (Omega t)^2 dt = n_nodes Omega^2 T^3 / 3
     (bit-rock law off, no lateral deflection, and no mass-proportional damping, whose drag on

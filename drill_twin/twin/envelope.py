@@ -95,7 +95,7 @@ class StringEnvelope:
 
     @classmethod
     def of(cls, system) -> 'StringEnvelope':
-        """Build the envelope of a reduced system (:class:`~drill_twin.dynamics.reduced_system`)."""
+        """Build the envelope of a reduced system (:mod:`~drill_twin.dynamics.reduced_system`)."""
         model = system.model
         mesh, prestress = model.mesh, model.prestress
         weight = prestress.hook_load_n - prestress.static_weight_on_bit_n
