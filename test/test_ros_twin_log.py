@@ -69,10 +69,17 @@ def bit_stamps_readable(path: Path) -> list[int]:
 
 
 def assert_complete_fast_run(path: Path, duration_s: float) -> None:
-    """Check a complete, readable log of a fast run: the twin clock from 0 to duration_s."""
+    """Check a complete, readable log of a fast run: the twin clock from 0 to duration_s.
+
+    The bit states are published every 10 ms tick and logged at log_state_rate_hz (50 Hz);
+    the KPIs every 100 ms as published; /clock is not logged (the log time is the clock).
+    """
     assert reader.is_complete(path)
     stamps = bit_stamps(path)
-    assert stamps == list(range(10_000_000, int(duration_s * 1e9) + 1, 10_000_000))
+    assert stamps == list(range(20_000_000, int(duration_s * 1e9) + 1, 20_000_000))
+    kpi = [m.log_time_ns for m in reader.iter_messages(path, [itf.KPI_ROP], strict=True)]
+    assert kpi == list(range(100_000_000, int(duration_s * 1e9) + 1, 100_000_000))
+    assert not list(reader.iter_messages(path, [itf.CLOCK]))
     rosout = [m.message.msg for m in reader.iter_messages(path, [itf.ROSOUT], strict=True)]
     assert rosout[-1] == f'{duration_s:g} s simulated: stopping'
     metadata = reader.read_metadata(path)['drill_twin']

@@ -197,6 +197,16 @@ VIBRATION_PREFIX = '/drill_twin/vibration/'
 """The stations' topics (interface.vibration_*_topic) start with it."""
 
 
+def logged(topic: str, states_due: bool) -> bool:
+    """
+    Tell whether a tick's message on ``topic`` goes to the log.
+
+    Everything but /clock (the log time is the twin's clock; a bag player makes /clock from
+    it) and, when ``states_due`` is false, the every-tick states.
+    """
+    return topic != itf.CLOCK and (states_due or not every_tick_topic(topic))
+
+
 def state_messages(snapshot: TwinSnapshot, stations_m, time_ns: int):
     """
     (topic, message) of every tick.

@@ -177,7 +177,7 @@ class TwinNode(Node):
         dt = self.engine.dt
         self.substeps = max(1, round(1.0 / (self.params.rate_hz * dt)))
         self.tick_s = self.substeps * dt
-        self._next_state_log_ns = 0                # twin time of the next logged states
+        self._next_state_log_ns = None             # twin time of the next logged states
         self.dt_ns = int(round(dt * 1e9))
         self.stations_m = [s.x_m for s in self.engine.simulator.system.stations]
         self.ticks = 0
@@ -372,16 +372,17 @@ class TwinNode(Node):
         log_states = self._log_states_due(now)
         for topic, message in messages.tick_messages(snapshot, self.stations_m, now,
                                                      self._plan(snapshot)):
-            self._publish(topic, message, now,
-                          log=log_states or not messages.every_tick_topic(topic))
+            self._publish(topic, message, now, log=messages.logged(topic, log_states))
         self._after_tick(snapshot, now)
 
     def _log_states_due(self, now_ns: int) -> bool:
         """Whether this tick's states go to the log (at most ``log_state_rate_hz``)."""
+        period = round(1e9 / self.params.log_state_rate_hz)
+        if self._next_state_log_ns is None:         # on the grid of the period's multiples
+            self._next_state_log_ns = -(-now_ns // period) * period
         if now_ns < self._next_state_log_ns:
             return False
-        period = round(1e9 / self.params.log_state_rate_hz)
-        self._next_state_log_ns = max(self._next_state_log_ns + period, now_ns + period // 2)
+        self._next_state_log_ns = (now_ns // period + 1) * period
         return True
 
     def _advance(self, steps: int):
