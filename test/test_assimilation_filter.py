@@ -132,3 +132,22 @@ def test_bad_input_is_refused():
         analyse(Y, np.zeros(2), np.ones(2), method='enkf')
     with pytest.raises(ValueError, match='shape'):
         analyse(Y, np.zeros(3), np.ones(3))
+
+
+@settings(max_examples=20, deadline=None)
+@given(members=st.integers(3, 20), relaxation=st.floats(0.0, 0.95),
+       inflation=st.floats(1.0, 1.5), seed=st.integers(0, 2**32 - 1))
+def test_relaxation_keeps_the_analysis_mean_and_blends_the_anomalies(members, relaxation,
+                                                                      inflation, seed):
+    """RTPP: the mean is the plain analysis's; the anomalies are (1 - r) A_a + r A_f with
+    A_f the (inflated) forecast anomalies."""
+    rng = np.random.default_rng(seed)
+    X = rng.normal(size=(members, 4))
+    H = rng.normal(size=(2, 4))
+    y, R = rng.normal(size=2), np.array([0.5, 2.0])
+    plain = analyse(X @ H.T, y, R, inflation=inflation).apply(X)
+    relaxed = analyse(X @ H.T, y, R, inflation=inflation, relaxation=relaxation).apply(X)
+    np.testing.assert_allclose(relaxed.mean(0), plain.mean(0), atol=1e-9)
+    forecast = inflation * (X - X.mean(0))
+    expected = (1 - relaxation) * (plain - plain.mean(0)) + relaxation * forecast
+    np.testing.assert_allclose(relaxed - relaxed.mean(0), expected, atol=1e-9)

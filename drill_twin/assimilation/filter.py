@@ -20,7 +20,10 @@ Methods (Evensen 2009; Hunt, Kostelich & Szunyogh 2007, Physica D 230):
   ensemble, so the analysis mean is the Kalman one; the covariance only in expectation).
 
 Inflation: multiplicative, anomalies scaled by ``inflation`` (>= 1) before the analysis (of
-X and Y alike: Y is taken to be linear in X over the ensemble's spread).
+X and Y alike: Y is taken to be linear in X over the ensemble's spread). Relaxation to the
+prior perturbations (RTPP, Zhang, Snyder & Sun 2004): the analysed anomalies blended with the
+forecast ones, A_a <- (1 - relaxation) A_a + relaxation A_f, against the collapse of a small
+ensemble; also linear in the members, so it is part of the transform.
 """
 from __future__ import annotations
 
@@ -65,7 +68,7 @@ def inflation_transform(members: int, inflation: float) -> np.ndarray:
 
 
 def analyse(predicted: np.ndarray, measured: np.ndarray, noise_covariance: np.ndarray, *,
-            method: str = 'etkf', inflation: float = 1.0,
+            method: str = 'etkf', inflation: float = 1.0, relaxation: float = 0.0,
             rng: np.random.Generator | None = None) -> Analysis:
     """The analysis transform of an ensemble (module docstring).
 
@@ -75,6 +78,7 @@ def analyse(predicted: np.ndarray, measured: np.ndarray, noise_covariance: np.nd
         noise_covariance: R, (p, p) symmetric positive-definite, or (p,) its diagonal.
         method: 'etkf' or 'enkf'.
         inflation: multiplicative inflation of the anomalies (>= 1; 1 = none).
+        relaxation: RTPP weight of the forecast anomalies in the analysed ones, in [0, 1).
         rng: the Generator of the observation perturbations (required for 'enkf').
 
     Returns:
@@ -92,6 +96,8 @@ def analyse(predicted: np.ndarray, measured: np.ndarray, noise_covariance: np.nd
         raise ValueError(f'method must be one of {METHODS}, got {method!r}')
     if not (math.isfinite(inflation) and inflation >= 1.0):
         raise ValueError(f'inflation must be >= 1, got {inflation!r}')
+    if not 0.0 <= relaxation < 1.0:
+        raise ValueError(f'relaxation must be in [0, 1), got {relaxation!r}')
     R = np.asarray(noise_covariance, dtype=float)
     R = np.diag(R) if R.ndim == 1 else R
     if R.shape != (p, p):
@@ -123,8 +129,13 @@ def analyse(predicted: np.ndarray, measured: np.ndarray, noise_covariance: np.nd
         transform = np.eye(n_members) + _centred_right(gains @ B.T) / (n_members - 1)
     nis = float(innovation @ np.linalg.solve(covariance, innovation))
     # T @ pre without an O(N^3) product: pre = J + inflation (I - J), J = 11^T / N.
-    return Analysis(transform=(1.0 - inflation) * transform.mean(axis=1, keepdims=True)
-                    + inflation * transform, innovation=innovation,
+    transform = (1.0 - inflation) * transform.mean(axis=1, keepdims=True) + inflation * transform
+    if relaxation > 0:
+        # RTPP: J T + (1 - r) (I - J) T + r (I - J) pre: the mean kept, anomalies blended.
+        mean_rows = transform.mean(axis=0, keepdims=True)                 # J T
+        transform = (mean_rows + (1.0 - relaxation) * (transform - mean_rows)
+                     + relaxation * (pre - pre.mean(axis=0, keepdims=True)))
+    return Analysis(transform=transform, innovation=innovation,
                     innovation_covariance=covariance, nis=nis)
 
 

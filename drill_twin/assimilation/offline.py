@@ -143,7 +143,7 @@ def _analyse(members: MemberState, settings: AssimilationConfig, log: RigLog, re
     variance = np.maximum(np.asarray(variance), 1e-12)
     spec = settings.filter
     result = analyse(Y, np.asarray(y), variance, method=spec.method, inflation=spec.inflation,
-                     rng=rng)
+                     relaxation=spec.relaxation, rng=rng)
     members.write(result.apply(members.extract()))
     for key in predicted:                                     # samples not yet arrived
         predicted[key] = result.apply(predicted[key])

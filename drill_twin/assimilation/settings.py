@@ -106,7 +106,8 @@ class Filter:
     """The ensemble filter.
 
     method: etkf or enkf; members: N (>= 2); inflation: multiplicative, of the anomalies at
-    every analysis (>= 1); analysis_rate_hz: analyses per second of model time (the
+    every analysis (>= 1); relaxation: RTPP weight of the forecast anomalies in the analysed
+    ones ([0, 1)); analysis_rate_hz: analyses per second of model time (the
     measurements that arrived since the last one are used together); measurements: the
     channels it uses; blocks: the reduced-coordinate blocks it analyses (the others are left
     as each member has them: localisation by variable); parameters: germ (the bit-rock germ
@@ -117,6 +118,7 @@ class Filter:
     method: Method = 'etkf'
     members: int = 16
     inflation: float = 1.02
+    relaxation: float = 0.5
     analysis_rate_hz: float = 5.0
     measurements: tuple[str, ...] = ('top_torque', 'block_position')
     blocks: tuple[str, ...] = ('axial', 'torsional')
@@ -127,6 +129,7 @@ class Filter:
     def __post_init__(self):
         _check(self.members >= 2, 'members', 'must be >= 2', self.members)
         _check(self.inflation >= 1, 'inflation', 'must be >= 1', self.inflation)
+        _check(0 <= self.relaxation < 1, 'relaxation', 'must be in [0, 1)', self.relaxation)
         _check(self.analysis_rate_hz > 0, 'analysis_rate_hz', 'must be > 0',
                self.analysis_rate_hz)
         for name in self.measurements:
