@@ -93,3 +93,20 @@ def test_channels_read_the_observation_with_a_drillers_signs(small_simulator):
 def test_sample_times_are_the_rate_multiples_within_the_log():
     np.testing.assert_allclose(sample_times(4.0, 1.0), [0.25, 0.5, 0.75, 1.0])
     assert sample_times(0.2, 4.9).size == 0
+
+
+def test_the_steady_point_of_the_mean_law_is_its_closed_form(default_config):
+    from drill_twin.assimilation.steady_law import steady_point
+    from drill_twin.dynamics.bit_rock import BitRockLaw
+
+    law = BitRockLaw.from_config(default_config.bit_rock)
+    omega, wob = 5.2, 100e3
+    rop, tob = steady_point(law, omega, wob)
+    np.testing.assert_allclose(rop, law.steady_rop(omega, -wob), rtol=1e-9)
+    np.testing.assert_allclose(-tob, law.steady_torque(omega, -wob), rtol=1e-9)
+    # A germ G = diag(g11, g22) scales the forces, F1 = g11 f and F2 = g22 t, but for the
+    # blend into the mean law near ROP = 0 (weight 0.998 at 2.5 mm/s: within 0.5 %).
+    germ = np.diag([1.2, 0.8])
+    rop_g, tob_g = steady_point(law, omega, wob, germ)
+    np.testing.assert_allclose(rop_g, law.steady_rop(omega, -wob / 1.2), rtol=5e-3)
+    np.testing.assert_allclose(-tob_g, 0.8 * law.steady_torque(omega, -wob / 1.2), rtol=5e-3)
