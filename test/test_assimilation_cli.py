@@ -15,8 +15,8 @@ from drill_twin.assimilation.settings import load_assimilation
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = ['--set', 'sections.drill_pipe.elements=8', '--set', 'sections.drill_collar.elements=4',
          '--set', 'reduced_basis.lateral_modes=6']
-SENSORS = ['--set', 'assimilation.sensors.downhole.rate_hz=4',
-           '--set', 'assimilation.sensors.downhole.delay_s=0.5']
+SENSORS = ['--set', 'assimilation.sensors.downhole.rate_hz=8',
+           '--set', 'assimilation.sensors.downhole.delay_s=0.25']
 
 
 def drill_twin(*args, check=False):
@@ -31,7 +31,7 @@ def drill_twin(*args, check=False):
 @pytest.fixture(scope='module')
 def rig_log(tmp_path_factory):
     path = tmp_path_factory.mktemp('rig') / 'rig.mcap'
-    drill_twin('rig', *SMALL, *SENSORS, '--duration', '1.0', '--out', str(path), check=True)
+    drill_twin('rig', *SMALL, *SENSORS, '--duration', '0.5', '--out', str(path), check=True)
     return path
 
 
@@ -45,10 +45,10 @@ def test_the_rig_log_holds_measurements_commands_and_truth_only(rig_log):
                                     '/rig/truth/hole_depth'}
     settings = load_assimilation(None, SENSORS[1::2])
     log = read_rig_log(rig_log, settings)
-    assert log.sensors['top_drive'].stamp_s.size == 10
+    assert log.sensors['top_drive'].stamp_s.size == 5
     downhole = log.sensors['downhole']
-    np.testing.assert_allclose(downhole.stamp_s, [0.25, 0.5])       # 0.75, 1.0 arrive later
-    np.testing.assert_allclose(downhole.arrival_s - downhole.stamp_s, 0.5)
+    np.testing.assert_allclose(downhole.stamp_s, [0.125, 0.25])     # 0.375... arrive later
+    np.testing.assert_allclose(downhole.arrival_s - downhole.stamp_s, 0.25)
     np.testing.assert_allclose(log.speed_commands[0], [0.0, 2 * np.pi * 0.83])
     # The downhole bit speed read is the truth's at the stamp, within its noise (5 sd).
     truth = np.interp(downhole.stamp_s, log.truth.time_s, log.truth.bit_speed_rad_per_s)
@@ -60,9 +60,9 @@ def test_assimilate_writes_the_estimate_and_the_summary(rig_log, tmp_path):
     from drill_twin.recording.reader import topics
 
     summary, out = tmp_path / 's.json', tmp_path / 'est.mcap'
-    result = drill_twin('assimilate', str(rig_log), *SMALL, *SENSORS, '--members', '3',
+    result = drill_twin('assimilate', str(rig_log), *SMALL, *SENSORS, '--members', '2',
                         '--measurements', 'top_torque,block_position,bit_speed',
-                        '--out', str(out), '--summary', str(summary), '--settle', '0.2',
+                        '--out', str(out), '--summary', str(summary), '--settle', '0.1',
                         check=True)
     assert 'RMS error' in result.stdout
     scores = json.loads(summary.read_text())
@@ -70,7 +70,7 @@ def test_assimilate_writes_the_estimate_and_the_summary(rig_log, tmp_path):
                 'bit_speed_coverage_95'):
         assert np.isfinite(scores[key]) and scores[key] >= 0
     assert 0 <= scores['bit_speed_coverage_95'] <= 1
-    assert scores['analyses'] == 5 and scores['members'] == 3
+    assert scores['analyses'] == 2 and scores['members'] == 2
     written = topics(out)
     for name in ('mean', 'lower', 'upper'):
         assert f'/drill_twin/assimilation/bit_state/{name}' in written
