@@ -137,8 +137,8 @@ def test_bad_input_is_refused():
 @settings(max_examples=20, deadline=None)
 @given(members=st.integers(3, 20), relaxation=st.floats(0.0, 0.95),
        inflation=st.floats(1.0, 1.5), seed=st.integers(0, 2**32 - 1))
-def test_relaxation_keeps_the_analysis_mean_and_blends_the_anomalies(members, relaxation,
-                                                                      inflation, seed):
+def test_relaxation_keeps_the_analysis_mean_and_blends_the_anomalies(
+        members, relaxation, inflation, seed):
     """RTPP: the mean is the plain analysis's; the anomalies are (1 - r) A_a + r A_f with
     A_f the (inflated) forecast anomalies."""
     rng = np.random.default_rng(seed)
