@@ -50,3 +50,19 @@ def test_a_file_overrides_the_defaults_and_is_blamed(tmp_path):
 def test_the_model_keeps_its_own_overrides():
     assert model_overrides(['assimilation.filter.members=3', 'bit_rock.a1_m_per_s=1e-3']) == [
         'bit_rock.a1_m_per_s=1e-3']
+
+
+def test_the_assimilation_core_never_imports_rclpy():
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    code = ('import sys\n'
+            'import drill_twin.assimilation.filter, drill_twin.assimilation.offline\n'
+            'import drill_twin.assimilation.rig, drill_twin.assimilation.steady_law\n'
+            'import drill_twin.cli.rig, drill_twin.cli.assimilate\n'
+            'assert "rclpy" not in sys.modules, "the assimilation core imported rclpy"\n')
+    root = str(Path(__file__).resolve().parents[1])
+    subprocess.run([sys.executable, '-c', code], check=True, timeout=120,
+                   env=dict(os.environ, PYTHONPATH=root))
