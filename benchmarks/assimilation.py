@@ -82,6 +82,8 @@ def main() -> None:
     filter_wall = time.perf_counter() - clock
 
     scores = {f'{s:g}': summarise(estimate, log, s) for s in args.settle if s < log.duration_s}
+    percentile = {f'{s:g}': summarise(estimate, log, s, 'percentile')['bit_speed_coverage_95']
+                  for s in args.settle if s < log.duration_s}
     a = estimate.arrays()
     germ = np.array([[a['germ_mean'][-1][0], a['germ_mean'][-1][1]],
                      [a['germ_mean'][-1][1], a['germ_mean'][-1][2]]])
@@ -104,7 +106,7 @@ def main() -> None:
               'truth_scale': args.scale, 'truth_delta': args.truth_delta,
               'torque_bias_nm': args.torque_bias, 'filter': repr(filter_settings.filter),
               'rig_wall_s': rig_wall, 'filter_wall_s': filter_wall,
-              'scores_by_settle_s': scores, 'law_at_operating_point': law,
+              'scores_by_settle_s': scores, 'percentile_coverage_by_settle_s': percentile, 'law_at_operating_point': law,
               'nis_per_measurement': (a['nis'] / a['measurements']).tolist(),
               'analysis_time_s': a['analysis_time_s'].tolist()}
     (out / 'assimilation.json').write_text(json.dumps(result, indent=2) + '\n')

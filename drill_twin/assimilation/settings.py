@@ -27,6 +27,7 @@ BLOCKS = ('axial', 'torsional', 'bending_y', 'bending_z')
 
 Method = Literal['etkf', 'enkf']
 Parameters = Literal['germ', 'none']
+Bounds = Literal['student_t', 'percentile']
 
 
 def _check(condition: bool, key: str, message: str, value) -> None:
@@ -112,7 +113,7 @@ class Filter:
     channels it uses; blocks: the reduced-coordinate blocks it analyses (the others are left
     as each member has them: localisation by variable); parameters: germ (the bit-rock germ
     as an augmented state) or none; prior_dispersion: delta of the members' initial germs;
-    seed: of the germs and the perturbations.
+    bounds: how the 95 % bounds are drawn from the members (offline.interval); seed: of the germs and the perturbations.
     """
 
     method: Method = 'etkf'
@@ -124,6 +125,7 @@ class Filter:
     blocks: tuple[str, ...] = ('axial', 'torsional')
     parameters: Parameters = 'germ'
     prior_dispersion: float = 0.2
+    bounds: Bounds = 'student_t'
     seed: int = 0
 
     def __post_init__(self):

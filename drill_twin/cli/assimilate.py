@@ -4,7 +4,7 @@ EST.mcap holds, at the truth's instants (or at the analysis instants without a t
 model time from 0 (ns):
 
 - /drill_twin/assimilation/bit_state/{mean,lower,upper}: the filter's bit speed (JointState
-  'bit_rotation' velocity, rad/s): ensemble mean and 2.5 % / 97.5 % percentiles;
+  'bit_rotation' velocity, rad/s): ensemble mean and 95 % bounds (assimilation.filter.bounds);
 - /drill_twin/assimilation/open_loop/bit_state/{mean,lower,upper}: the same ensemble without
   analysis;
 - /drill_twin/assimilation/germ/{mean,lower,upper}: the estimated bit-rock germ (std_msgs/
@@ -95,10 +95,10 @@ def run(args: argparse.Namespace) -> int:
     except TwinStalled as error:
         raise blamed(config, args.overrides, f'the ensemble cannot be integrated: {error}'
                      ) from None
-    write_estimate(args.out, estimate, log)
+    write_estimate(args.out, estimate, log, settings.filter.bounds)
     text = f'assimilate: {log.duration_s:g} s of {args.log}, {settings.filter.members} members'
     if log.truth is not None:
-        summary = summarise(estimate, log, args.settle)
+        summary = summarise(estimate, log, args.settle, settings.filter.bounds)
         summary['members'] = settings.filter.members
         summary['measurements'] = list(settings.filter.measurements)
         if args.summary:
@@ -111,7 +111,7 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def write_estimate(path, estimate, log) -> None:
+def write_estimate(path, estimate, log, method: str = 'student_t') -> None:
     """EST.mcap (module docstring)."""
     from drill_twin import interface as itf
     from drill_twin.recording.mcap_log import McapLog
@@ -128,10 +128,11 @@ def write_estimate(path, estimate, log) -> None:
         message.header.stamp.nanosec = t_ns % 1_000_000_000
 
     a = estimate.arrays()
+    filtered, open_loop = estimate.bounds('filtered', method), estimate.bounds('open_loop', method)
     messages = []
     for k, time_s in enumerate(a['time_s']):
         t = int(round(time_s * 1e9))
-        for kind, values in (('', a['filtered'][k]), ('/open_loop', a['open_loop'][k])):
+        for kind, values in (('', filtered[k]), ('/open_loop', open_loop[k])):
             for column, name in enumerate(('mean', 'lower', 'upper')):
                 message = joint_state()
                 stamp(message, t)
