@@ -106,7 +106,8 @@ def main() -> None:
               'truth_scale': args.scale, 'truth_delta': args.truth_delta,
               'torque_bias_nm': args.torque_bias, 'filter': repr(filter_settings.filter),
               'rig_wall_s': rig_wall, 'filter_wall_s': filter_wall,
-              'scores_by_settle_s': scores, 'percentile_coverage_by_settle_s': percentile, 'law_at_operating_point': law,
+              'scores_by_settle_s': scores, 'percentile_coverage_by_settle_s': percentile,
+              'law_at_operating_point': law,
               'nis_per_measurement': (a['nis'] / a['measurements']).tolist(),
               'analysis_time_s': a['analysis_time_s'].tolist()}
     (out / 'assimilation.json').write_text(json.dumps(result, indent=2) + '\n')

@@ -38,8 +38,9 @@ class Estimate:
     times without a truth), and the filter's record.
 
     time_s (k,); filtered and open_loop: (k, N) the members' bit speeds (rad/s), summarised
-    by :meth:`bounds`; analysis_time_s (a,), nis (a,), measurements (a,) per analysis; germ_mean and
-    germ_lower/upper (a, 3): G11, G12, G22 of the analysed members after each analysis.
+    by :meth:`bounds`; analysis_time_s (a,), nis (a,), measurements (a,) per analysis;
+    germ_mean and germ_lower/upper (a, 3): G11, G12, G22 of the analysed members after each
+    analysis.
     """
 
     time_s: list = field(default_factory=list)

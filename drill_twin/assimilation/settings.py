@@ -113,7 +113,8 @@ class Filter:
     channels it uses; blocks: the reduced-coordinate blocks it analyses (the others are left
     as each member has them: localisation by variable); parameters: germ (the bit-rock germ
     as an augmented state) or none; prior_dispersion: delta of the members' initial germs;
-    bounds: how the 95 % bounds are drawn from the members (offline.interval); seed: of the germs and the perturbations.
+    bounds: how the 95 % bounds are drawn from the members (offline.interval); seed: of
+    the germs and the perturbations.
     """
 
     method: Method = 'etkf'
