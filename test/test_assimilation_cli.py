@@ -62,6 +62,7 @@ def test_assimilate_writes_the_estimate_and_the_summary(rig_log, tmp_path):
     summary, out = tmp_path / 's.json', tmp_path / 'est.mcap'
     result = drill_twin('assimilate', str(rig_log), *SMALL, *SENSORS, '--members', '2',
                         '--measurements', 'top_torque,block_position,bit_speed',
+                        '--set', 'assimilation.filter.model_error_bit_speed_rad_per_s=0.05',
                         '--out', str(out), '--summary', str(summary), '--settle', '0.1',
                         check=True)
     assert 'RMS error' in result.stdout

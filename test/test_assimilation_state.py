@@ -110,3 +110,13 @@ def test_the_steady_point_of_the_mean_law_is_its_closed_form(default_config):
     rop_g, tob_g = steady_point(law, omega, wob, germ)
     np.testing.assert_allclose(rop_g, law.steady_rop(omega, -wob / 1.2), rtol=5e-3)
     np.testing.assert_allclose(-tob_g, 0.8 * law.steady_torque(omega, -wob / 1.2), rtol=5e-3)
+
+
+def test_the_bit_speed_direction_changes_the_bit_speed_by_one(small_simulator):
+    sim = small_simulator
+    members = MemberState(sim, 3, ('axial', 'torsional'))
+    before = sim.observe().speed_rad_per_s.copy()
+    members.write(members.extract() + 0.5 * members.bit_speed_direction())
+    after = sim.observe().speed_rad_per_s
+    np.testing.assert_allclose(after[:3] - before[:3], 0.5, atol=1e-9)
+    np.testing.assert_allclose(after[3:], before[3:], atol=1e-12)

@@ -165,7 +165,12 @@ def _analyse(members: MemberState, settings: AssimilationConfig, log: RigLog, re
     spec = settings.filter
     result = analyse(Y, np.asarray(y), variance, method=spec.method, inflation=spec.inflation,
                      relaxation=spec.relaxation, rng=rng)
-    members.write(result.apply(members.extract()))
+    analysed = result.apply(members.extract())
+    sigma = spec.model_error_bit_speed_rad_per_s
+    if sigma > 0:                         # additive inflation: centred, the mean unchanged
+        kicks = sigma * rng.standard_normal(analysed.shape[0])
+        analysed += np.outer(kicks - kicks.mean(), members.bit_speed_direction())
+    members.write(analysed)
     for key in predicted:                                     # samples not yet arrived
         predicted[key] = result.apply(predicted[key])
     germs = members.germs()

@@ -113,8 +113,10 @@ class Filter:
     channels it uses; blocks: the reduced-coordinate blocks it analyses (the others are left
     as each member has them: localisation by variable); parameters: germ (the bit-rock germ
     as an augmented state) or none; prior_dispersion: delta of the members' initial germs;
-    bounds: how the 95 % bounds are drawn from the members (offline.interval); seed: of
-    the germs and the perturbations.
+    bounds: how the 95 % bounds are drawn from the members (offline.interval);
+    model_error_bit_speed_rad_per_s: additive inflation for model error, the standard
+    deviation of a centred random change of each member's bit speed after each analysis
+    (rad/s, 0: none); seed: of the germs and the perturbations.
     """
 
     method: Method = 'etkf'
@@ -127,6 +129,7 @@ class Filter:
     parameters: Parameters = 'germ'
     prior_dispersion: float = 0.2
     bounds: Bounds = 'student_t'
+    model_error_bit_speed_rad_per_s: float = 0.0
     seed: int = 0
 
     def __post_init__(self):
@@ -146,6 +149,11 @@ class Filter:
         _check(0 <= self.prior_dispersion < MAX_DISPERSION, 'prior_dispersion',
                f'must be in [0, {MAX_DISPERSION:.4f})', self.prior_dispersion)
         _check(self.seed >= 0, 'seed', 'must be >= 0', self.seed)
+        _check(self.model_error_bit_speed_rad_per_s >= 0, 'model_error_bit_speed_rad_per_s',
+               'must be >= 0', self.model_error_bit_speed_rad_per_s)
+        _check(self.model_error_bit_speed_rad_per_s == 0 or 'torsional' in self.blocks,
+               'model_error_bit_speed_rad_per_s', 'needs the torsional block analysed',
+               self.blocks)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

@@ -76,6 +76,22 @@ class MemberState:
             parts.append(germ_to_coordinates(self.simulator.integrator.germ[:m]))
         return np.concatenate(parts, axis=1)
 
+    def bit_speed_direction(self) -> np.ndarray:
+        """(size,) the least-norm change of a state vector that changes the bit's speed
+        (relative to the top) by 1 rad/s: along the torsional shapes at the bit, in the
+        rates. Requires the torsional block among the analysed ones."""
+        system = self.simulator.system
+        torsion = system.blocks['torsional']
+        row = np.zeros(system.size)
+        row[torsion.columns] = torsion.shapes[system.bit_node]
+        shapes = row[self.columns]
+        if not np.any(shapes):
+            raise ValueError('the torsional block is not analysed')
+        direction = np.zeros(self.size)
+        k = self.columns.size
+        direction[k:2 * k] = shapes / (shapes @ shapes)
+        return direction
+
     def germs(self) -> np.ndarray:
         """The analysed members' germs, (members, 2, 2)."""
         return self.simulator.integrator.germ[:self.members].copy()
