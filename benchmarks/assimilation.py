@@ -9,7 +9,9 @@ with the bit-rock coefficients a1..a5 changed (default x 1.2, 0.9, 1.1, 1.3, 0.7
 +100 N m (about 2 % of it), 2 mm on the block position; the default schedule (0.83 Hz,
 1.0 Hz at 30 s, hook load +10 kN at 60 s, as far as the log goes). The filter starts from
 the default configuration (config/ritto2009.yaml: the paper's coefficients) with N members
-of germs at its prior dispersion, and uses the surface torque and the block position.
+of germs at its prior dispersion, and uses the surface torque and the block position, with
+the filter settings of config/assimilation.yaml (change them with --set assimilation.K=V).
+Results: docs/ASSIMILATION.md.
 
 The log goes through the MCAP writer and reader of ``drill-twin rig`` / ``assimilate``. The
 scores (the summary keys of ``drill-twin assimilate --summary``) are printed for several
