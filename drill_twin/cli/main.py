@@ -12,9 +12,11 @@ if startup_signals.wanted(sys.argv):
 from drill_twin import __version__  # noqa: E402
 from drill_twin.cli import map as map_command  # noqa: E402
 from drill_twin.cli import modes, montecarlo, recover, replay, simulate, twin, view  # noqa: E402
+from drill_twin.cli import assimilate, rig  # noqa: E402
 from drill_twin.cli.common import OneLineArgumentParser, report_and_exit_code  # noqa: E402
 
-SUBCOMMANDS = (modes, simulate, montecarlo, map_command, twin, view, replay, recover)
+SUBCOMMANDS = (modes, simulate, montecarlo, map_command, twin, view, replay, recover, rig,
+               assimilate)
 
 
 def build_parser() -> argparse.ArgumentParser:

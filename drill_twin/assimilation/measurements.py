@@ -1,0 +1,62 @@
+"""What a rig measures, read off the model's :class:`Observation`, and how a sensor samples it.
+
+Channels (SI, the sign a driller reads):
+
+- top_speed (rad/s): the top drive's speed; top_torque (N m, > 0 driving): the torque the top
+  drive applies to the string;
+- hook_load (N): the hook load; block_position (m, down): the travelling block's
+  displacement from the prestressed state (the top's axial displacement);
+- bit_speed (rad/s), torque_on_bit (N m, > 0 while cutting: minus the model's t_bit),
+  weight_on_bit (N, > 0 in compression: minus the model's f_bit): downhole, as mud-pulse
+  telemetry sends them.
+
+A sensor samples its channels at ``rate_hz`` (stamps k / rate_hz) and each sample arrives
+``delay_s`` later; a reading is the value plus the bias plus Gaussian noise of standard
+deviation hypot(noise_std, noise_relative |value|).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from drill_twin.assimilation.settings import SENSOR_OF, AssimilationConfig
+from drill_twin.dynamics.simulator import Observation
+
+CHANNELS = tuple(SENSOR_OF)
+SENSORS = ('top_drive', 'hook', 'downhole')
+SENSOR_CHANNELS = {sensor: tuple(c for c in CHANNELS if SENSOR_OF[c] == sensor)
+                   for sensor in SENSORS}
+"""The channels of each sensor, in message order."""
+MEMBER_DEPENDENT = ('top_torque', 'block_position', 'bit_speed', 'torque_on_bit',
+                    'weight_on_bit')
+"""Channels that differ between members (top_speed and hook_load are the commands' in force
+with the top drive and hook of the model: the same for all members)."""
+
+
+def channel_values(observation: Observation, channel: str, members: int) -> np.ndarray:
+    """The channel's true value for the first ``members`` members, shape (members,).
+
+    The observation must have the top quantities (``detailed``) for those members."""
+    o = observation
+    if channel == 'top_speed':
+        return np.full(members, float(o.top_speed_rad_per_s))
+    if channel == 'hook_load':
+        return np.full(members, float(o.hook_load_n))
+    value = {'top_torque': lambda: o.top_torque_nm,
+             'block_position': lambda: o.hook_position_m,
+             'bit_speed': lambda: o.speed_rad_per_s,
+             'torque_on_bit': lambda: -o.torque_on_bit_nm,
+             'weight_on_bit': lambda: -o.weight_on_bit_n}[channel]()
+    return np.asarray(value[:members], dtype=float)
+
+
+def sample_times(rate_hz: float, duration_s: float) -> np.ndarray:
+    """Stamps k / rate_hz in (0, duration_s] (s)."""
+    count = int(np.floor(duration_s * rate_hz + 1e-9))
+    return np.arange(1, count + 1) / rate_hz
+
+
+def read(settings: AssimilationConfig, channel: str, value, rng: np.random.Generator):
+    """A noisy, biased reading of ``value`` (any shape) as ``settings`` describe the channel."""
+    spec = settings.channel(channel)
+    value = np.asarray(value, dtype=float)
+    return value + spec.bias + spec.std(value) * rng.standard_normal(value.shape)

@@ -1,0 +1,248 @@
+"""The ``assimilation:`` settings (config/assimilation.yaml) as validated frozen dataclasses.
+
+The rig emulator and the filter read the same section: the rig takes the sensors' rates,
+delays, noise and bias as the truth's; the filter takes them as what it assumes of the
+sensors (its noise covariance R), so the filter's file (or ``--set``) may differ from the
+rig's: a bias the filter is not told of, a noise it overstates.
+
+Loaded by :func:`load_assimilation`: the shipped file, an optional file of the user's merged
+over it, then ``--set assimilation.KEY=VALUE`` overrides; a bad value raises
+:class:`~drill_twin.config.loader.ConfigError` naming the key (one line).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterable, Literal
+
+from drill_twin.config.loader import (ConfigError, _build, _BuildError, _read_yaml,
+                                      apply_override, merge)
+from drill_twin.config.paths import config_directory
+from drill_twin.config.schema import ConfigValueError
+
+SECTION = 'assimilation'
+DEFAULT_FILE = 'assimilation.yaml'
+BLOCKS = ('axial', 'torsional', 'bending_y', 'bending_z')
+
+Method = Literal['etkf', 'enkf']
+Parameters = Literal['germ', 'none']
+Bounds = Literal['student_t', 'percentile']
+
+
+def _check(condition: bool, key: str, message: str, value) -> None:
+    if not condition:
+        raise ConfigValueError(key, f'{message}, got {value!r}')
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Channel:
+    """One measured quantity: noise standard deviation noise_std + noise_relative |value|
+    (combined in quadrature; SI units of the quantity) and a constant bias (SI)."""
+
+    noise_std: float
+    noise_relative: float = 0.0
+    bias: float = 0.0
+
+    def __post_init__(self):
+        _check(self.noise_std >= 0, 'noise_std', 'must be >= 0', self.noise_std)
+        _check(self.noise_relative >= 0, 'noise_relative', 'must be >= 0',
+               self.noise_relative)
+
+    def std(self, value):
+        """The noise standard deviation at ``value`` (same shape)."""
+        import numpy as np
+        return np.hypot(self.noise_std, self.noise_relative * np.abs(value))
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Channels:
+    """The channels a rig measures (units: rad/s, N m, N, m)."""
+
+    top_speed: Channel
+    top_torque: Channel
+    hook_load: Channel
+    block_position: Channel
+    bit_speed: Channel
+    torque_on_bit: Channel
+    weight_on_bit: Channel
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Sensor:
+    """A sensor's messages: on ``topic`` at ``rate_hz``, each arriving ``delay_s`` after the
+    instant it samples (its header stamp): 0 at the surface, seconds for mud-pulse data."""
+
+    topic: str
+    rate_hz: float
+    delay_s: float = 0.0
+
+    def __post_init__(self):
+        _check(self.topic.startswith('/'), 'topic', 'must be an absolute topic name',
+               self.topic)
+        _check(math.isfinite(self.rate_hz) and self.rate_hz > 0, 'rate_hz', 'must be > 0',
+               self.rate_hz)
+        _check(self.delay_s >= 0, 'delay_s', 'must be >= 0', self.delay_s)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Sensors:
+    """top_drive: surface speed and torque (sensor_msgs/JointState 'top_drive'); hook: hook
+    load and block position (JointState 'hook', effort and position); downhole: bit speed,
+    TOB and WOB (JointState 'bit_rotation' velocity/effort, 'bit_axial' effort)."""
+
+    top_drive: Sensor
+    hook: Sensor
+    downhole: Sensor
+
+
+SENSOR_OF = {'top_speed': 'top_drive', 'top_torque': 'top_drive', 'hook_load': 'hook',
+             'block_position': 'hook', 'bit_speed': 'downhole', 'torque_on_bit': 'downhole',
+             'weight_on_bit': 'downhole'}
+"""Which sensor carries each channel."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Filter:
+    """The ensemble filter.
+
+    method: etkf or enkf; members: N (>= 2); inflation: multiplicative, of the anomalies at
+    every analysis (>= 1); relaxation: RTPP weight of the forecast anomalies in the analysed
+    ones ([0, 1)); analysis_rate_hz: analyses per second of model time (the
+    measurements that arrived since the last one are used together); measurements: the
+    channels it uses; blocks: the reduced-coordinate blocks it analyses (the others are left
+    as each member has them: localisation by variable); parameters: germ (the bit-rock germ
+    as an augmented state) or none; prior_dispersion: delta of the members' initial germs;
+    bounds: how the 95 % bounds are drawn from the members (offline.interval);
+    model_error_bit_speed_rad_per_s: additive inflation for model error, the standard
+    deviation of a centred random change of each member's bit speed after each analysis
+    (rad/s, 0: none); seed: of the germs and the perturbations.
+    """
+
+    method: Method = 'etkf'
+    members: int = 16
+    inflation: float = 1.02
+    relaxation: float = 0.5
+    analysis_rate_hz: float = 5.0
+    measurements: tuple[str, ...] = ('top_torque', 'block_position')
+    blocks: tuple[str, ...] = ('axial', 'torsional')
+    parameters: Parameters = 'germ'
+    prior_dispersion: float = 0.2
+    bounds: Bounds = 'student_t'
+    model_error_bit_speed_rad_per_s: float = 0.0
+    seed: int = 0
+
+    def __post_init__(self):
+        _check(self.members >= 2, 'members', 'must be >= 2', self.members)
+        _check(self.inflation >= 1, 'inflation', 'must be >= 1', self.inflation)
+        _check(0 <= self.relaxation < 1, 'relaxation', 'must be in [0, 1)', self.relaxation)
+        _check(self.analysis_rate_hz > 0, 'analysis_rate_hz', 'must be > 0',
+               self.analysis_rate_hz)
+        for name in self.measurements:
+            _check(name in SENSOR_OF, 'measurements',
+                   f'must name channels among {", ".join(SENSOR_OF)}', name)
+        _check(len(self.measurements) > 0, 'measurements', 'must name a channel',
+               self.measurements)
+        for name in self.blocks:
+            _check(name in BLOCKS, 'blocks', f'must be among {", ".join(BLOCKS)}', name)
+        from drill_twin.uncertainty.germ import MAX_DISPERSION
+        _check(0 <= self.prior_dispersion < MAX_DISPERSION, 'prior_dispersion',
+               f'must be in [0, {MAX_DISPERSION:.4f})', self.prior_dispersion)
+        _check(self.seed >= 0, 'seed', 'must be >= 0', self.seed)
+        _check(self.model_error_bit_speed_rad_per_s >= 0, 'model_error_bit_speed_rad_per_s',
+               'must be >= 0', self.model_error_bit_speed_rad_per_s)
+        _check(self.model_error_bit_speed_rad_per_s == 0 or 'torsional' in self.blocks,
+               'model_error_bit_speed_rad_per_s', 'needs the torsional block analysed',
+               self.blocks)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class SetPoint:
+    """A change of the commands at ``time_s`` (s): the top-drive speed (Hz) and/or the hook
+    load, as a change from the initial one (N, > 0 lifts: less weight on bit)."""
+
+    time_s: float
+    top_drive_speed_hz: float | None = None
+    hook_load_change_n: float | None = None
+
+    def __post_init__(self):
+        _check(self.time_s >= 0, 'time_s', 'must be >= 0', self.time_s)
+        if self.top_drive_speed_hz is not None:
+            _check(self.top_drive_speed_hz > 0, 'top_drive_speed_hz', 'must be > 0',
+                   self.top_drive_speed_hz)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Rig:
+    """The rig emulator: its schedule of set-points, the rate of the true downhole state it
+    records for scoring (Hz) and the seed of its sensor noise."""
+
+    schedule: tuple[SetPoint, ...] = ()
+    truth_rate_hz: float = 20.0
+    seed: int = 1
+
+    def __post_init__(self):
+        _check(self.truth_rate_hz > 0, 'truth_rate_hz', 'must be > 0', self.truth_rate_hz)
+        _check(self.seed >= 0, 'seed', 'must be >= 0', self.seed)
+        times = [point.time_s for point in self.schedule]
+        _check(times == sorted(times), 'schedule', 'must be in time order', times)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class AssimilationConfig:
+    """The whole ``assimilation:`` section."""
+
+    filter: Filter
+    sensors: Sensors
+    channels: Channels
+    rig: Rig
+    source: str = '<defaults>'
+
+    def channel(self, name: str) -> Channel:
+        return getattr(self.channels, name)
+
+    def sensor_of(self, name: str) -> Sensor:
+        return getattr(self.sensors, SENSOR_OF[name])
+
+
+def default_path() -> Path:
+    return config_directory() / DEFAULT_FILE
+
+
+def load_assimilation(path: str | Path | None = None,
+                      overrides: Iterable[str] = ()) -> AssimilationConfig:
+    """The section from the shipped file, ``path`` merged over it and ``overrides``
+    (``assimilation.KEY=VALUE``; others are ignored: they belong to the model)."""
+    defaults = default_path()
+    raw = _section(_read_yaml(defaults), str(defaults))
+    source = str(defaults)
+    if path is not None:
+        source = str(path)
+        raw = merge(raw, _section(_read_yaml(Path(path)), source))
+    ours = [item for item in overrides if item.startswith(SECTION + '.')]
+    for item in ours:
+        raw = apply_override({SECTION: raw}, item)[SECTION]
+    try:
+        built = _build(AssimilationConfig, raw, SECTION, extra={'source': source})
+    except _BuildError as error:
+        where = '--set' if any(item.split('=', 1)[0].strip() == error.key
+                               or error.key.startswith(item.split('=', 1)[0].strip() + '.')
+                               for item in ours) else source
+        raise ConfigError(where, error.key, error.message) from None
+    return built
+
+
+def model_overrides(overrides: Iterable[str]) -> list[str]:
+    """The ``--set`` items that are not ours (the model's)."""
+    return [item for item in overrides if not item.startswith(SECTION + '.')]
+
+
+def _section(raw: dict, source: str) -> dict:
+    if set(raw) != {SECTION}:
+        extra = sorted(set(raw) - {SECTION})
+        raise ConfigError(source, extra[0] if extra else SECTION,
+                          f'expected one top-level key {SECTION!r}' if extra else 'missing')
+    section = raw[SECTION]
+    if not isinstance(section, dict):
+        raise ConfigError(source, SECTION, 'expected a mapping')
+    return section

@@ -1,0 +1,126 @@
+"""The analysed state of a batch of members, read from and written back into a Simulator.
+
+Per member the state vector is, in order: the reduced coordinates q of the analysed blocks,
+their rates, the hole's offset below the bit (m, >= 0: 0 on bottom) and, with parameters
+'germ', the bit-rock germ's three Cholesky coordinates (log L11, L12, log L22) with
+[G_b] = L^T L, L upper triangular (any value is a symmetric positive-definite germ).
+
+Writing back (:meth:`MemberState.write`) is an adapter over the Simulator's public state
+(``state``, ``integrator``): the new coordinates, the accelerations that balance them
+(``NewmarkIntegrator.initial_state``), the germ, and the forces re-evaluated. The
+Simulator has no setter for a batch state; this is the one place that does it.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from drill_twin.dynamics.simulator import Simulator
+
+GERM_COORDINATES = ('log_l11', 'l12', 'log_l22')
+
+
+def germ_to_coordinates(germ: np.ndarray) -> np.ndarray:
+    """(m, 2, 2) SPD germs -> (m, 3) coordinates (log L11, L12, log L22), G = L^T L."""
+    g11, g12, g22 = germ[:, 0, 0], germ[:, 0, 1], germ[:, 1, 1]
+    l11 = np.sqrt(g11)
+    l12 = g12 / l11
+    l22 = np.sqrt(g22 - l12 * l12)
+    return np.stack([np.log(l11), l12, np.log(l22)], axis=1)
+
+
+def coordinates_to_germ(coordinates: np.ndarray) -> np.ndarray:
+    """(m, 3) coordinates -> (m, 2, 2) symmetric positive-definite germs."""
+    l11, l12, l22 = np.exp(coordinates[:, 0]), coordinates[:, 1], np.exp(coordinates[:, 2])
+    germ = np.empty((coordinates.shape[0], 2, 2))
+    germ[:, 0, 0] = l11 * l11
+    germ[:, 0, 1] = germ[:, 1, 0] = l11 * l12
+    germ[:, 1, 1] = l12 * l12 + l22 * l22
+    return germ
+
+
+class MemberState:
+    """The analysed state of members 0..members-1 of ``simulator`` (the rest untouched).
+
+    Args:
+        simulator: the batch (its integrator must carry germs when parameters='germ').
+        members: how many of its first members are analysed.
+        blocks: names of the reduced-coordinate blocks analysed ('axial', 'torsional', ...).
+        parameters: 'germ' or 'none'.
+    """
+
+    def __init__(self, simulator: Simulator, members: int, blocks, parameters: str = 'germ'):
+        self.simulator = simulator
+        self.members = int(members)
+        system = simulator.system
+        self.columns = np.concatenate([np.arange(system.size)[system.blocks[b].columns]
+                                       for b in blocks])
+        self.parameters = parameters
+        if parameters == 'germ' and simulator.integrator.germ is None:
+            raise ValueError("parameters 'germ' needs a simulator with germs")
+        axial = system.blocks['axial']
+        self._bit_row = np.zeros(system.size)
+        self._bit_row[axial.columns] = axial.shapes[system.bit_node]
+
+    @property
+    def size(self) -> int:
+        """Length of a member's state vector."""
+        return 2 * self.columns.size + 1 + (3 if self.parameters == 'germ' else 0)
+
+    def extract(self) -> np.ndarray:
+        """The state vectors, shape (members, size)."""
+        state, m = self.simulator.state, self.members
+        q, rate = state.q[:m], state.q_rate[:m]
+        offset = self.simulator.hole_u()[:m] - q @ self._bit_row
+        parts = [q[:, self.columns], rate[:, self.columns], offset[:, None]]
+        if self.parameters == 'germ':
+            parts.append(germ_to_coordinates(self.simulator.integrator.germ[:m]))
+        return np.concatenate(parts, axis=1)
+
+    def bit_speed_direction(self) -> np.ndarray:
+        """(size,) the least-norm change of a state vector that changes the bit's speed
+        (relative to the top) by 1 rad/s: along the torsional shapes at the bit, in the
+        rates. Requires the torsional block among the analysed ones."""
+        system = self.simulator.system
+        torsion = system.blocks['torsional']
+        row = np.zeros(system.size)
+        row[torsion.columns] = torsion.shapes[system.bit_node]
+        shapes = row[self.columns]
+        if not np.any(shapes):
+            raise ValueError('the torsional block is not analysed')
+        direction = np.zeros(self.size)
+        k = self.columns.size
+        direction[k:2 * k] = shapes / (shapes @ shapes)
+        return direction
+
+    def germs(self) -> np.ndarray:
+        """The analysed members' germs, (members, 2, 2)."""
+        return self.simulator.integrator.germ[:self.members].copy()
+
+    def write(self, vectors: np.ndarray) -> None:
+        """Put state vectors (members, size) back: a member on bottom before stays on bottom
+        (offset 0); an offset is never negative."""
+        sim, m, k = self.simulator, self.members, self.columns.size
+        vectors = np.asarray(vectors, dtype=float)
+        if vectors.shape != (m, self.size):
+            raise ValueError(f'state vectors must have shape ({m}, {self.size})')
+        state = sim.state
+        was_on_bottom = sim.on_bottom()[:m]
+        q, rate = state.q.copy(), state.q_rate.copy()
+        rows = np.arange(m)[:, None]
+        q[rows, self.columns] = vectors[:, :k]
+        rate[rows, self.columns] = vectors[:, k:2 * k]
+        offset = np.where(was_on_bottom, 0.0, np.maximum(vectors[:, 2 * k], 0.0))
+        hole = sim.hole_u().copy()
+        hole[:m] = q[:m] @ self._bit_row + offset
+        if self.parameters == 'germ':
+            germ = sim.integrator.germ.copy()
+            germ[:m] = coordinates_to_germ(vectors[:, 2 * k + 1:2 * k + 4])
+            sim.integrator.germ = germ
+        fresh = sim.integrator.initial_state(q, rate, state.top_speed_rad_per_s,
+                                             state.hook_load_n, top_angle_rad=state.top_angle_rad,
+                                             hole_u=hole)
+        for name in ('q', 'q_rate', 'q_acceleration', 'hole_u'):
+            getattr(state, name)[:m] = getattr(fresh, name)[:m]
+        sim.integrator.forget(np.arange(m))
+        sim.last = sim.integrator.evaluate(state)
+        sim._on_bottom = sim.on_bottom()           # no false landing counted at the next step

@@ -1,0 +1,120 @@
+"""drill-twin rig and drill-twin assimilate end to end on a small model, and bad input."""
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cli_output import assert_one_line
+from drill_twin.assimilation.measurements import read
+from drill_twin.assimilation.settings import load_assimilation
+
+ROOT = Path(__file__).resolve().parents[1]
+SMALL = ['--set', 'sections.drill_pipe.elements=8', '--set', 'sections.drill_collar.elements=4',
+         '--set', 'reduced_basis.lateral_modes=6']
+SENSORS = ['--set', 'assimilation.sensors.downhole.rate_hz=8',
+           '--set', 'assimilation.sensors.downhole.delay_s=0.25']
+
+
+def drill_twin(*args, check=False):
+    environment = dict(os.environ, PYTHONPATH=str(ROOT))
+    result = subprocess.run([sys.executable, '-m', 'drill_twin.cli.main', *args],
+                            capture_output=True, text=True, env=environment, timeout=600)
+    if check:
+        assert result.returncode == 0, result.stderr[-3000:]
+    return result
+
+
+@pytest.fixture(scope='module')
+def rig_log(tmp_path_factory):
+    path = tmp_path_factory.mktemp('rig') / 'rig.mcap'
+    drill_twin('rig', *SMALL, *SENSORS, '--duration', '0.5', '--out', str(path), check=True)
+    return path
+
+
+def test_the_rig_log_holds_measurements_commands_and_truth_only(rig_log):
+    from drill_twin.cli.rig import read_rig_log
+    from drill_twin.recording.reader import topics
+
+    assert set(topics(rig_log)) == {'/rig/top_drive', '/rig/hook', '/rig/downhole',
+                                    '/drill_twin/cmd/top_drive_speed',
+                                    '/drill_twin/cmd/hook_load', '/rig/truth/bit_state',
+                                    '/rig/truth/hole_depth'}
+    settings = load_assimilation(None, SENSORS[1::2])
+    log = read_rig_log(rig_log, settings)
+    assert log.sensors['top_drive'].stamp_s.size == 5
+    downhole = log.sensors['downhole']
+    np.testing.assert_allclose(downhole.stamp_s, [0.125, 0.25])     # 0.375... arrive later
+    np.testing.assert_allclose(downhole.arrival_s - downhole.stamp_s, 0.25)
+    np.testing.assert_allclose(log.speed_commands[0], [0.0, 2 * np.pi * 0.83])
+    # The downhole bit speed read is the truth's at the stamp, within its noise (5 sd).
+    truth = np.interp(downhole.stamp_s, log.truth.time_s, log.truth.bit_speed_rad_per_s)
+    spec = settings.channel('bit_speed')
+    assert np.all(np.abs(downhole.values['bit_speed'] - truth) < 5 * spec.std(truth))
+
+
+def test_assimilate_writes_the_estimate_and_the_summary(rig_log, tmp_path):
+    from drill_twin.recording.reader import topics
+
+    summary, out = tmp_path / 's.json', tmp_path / 'est.mcap'
+    result = drill_twin('assimilate', str(rig_log), *SMALL, *SENSORS, '--members', '2',
+                        '--measurements', 'top_torque,block_position,bit_speed',
+                        '--set', 'assimilation.filter.model_error_bit_speed_rad_per_s=0.05',
+                        '--out', str(out), '--summary', str(summary), '--settle', '0.1',
+                        check=True)
+    assert 'RMS error' in result.stdout
+    scores = json.loads(summary.read_text())
+    for key in ('bit_speed_rms_error_rad_per_s', 'open_loop_bit_speed_rms_error_rad_per_s',
+                'bit_speed_coverage_95'):
+        assert np.isfinite(scores[key]) and scores[key] >= 0
+    assert 0 <= scores['bit_speed_coverage_95'] <= 1
+    assert scores['analyses'] == 2 and scores['members'] == 2
+    written = topics(out)
+    for name in ('mean', 'lower', 'upper'):
+        assert f'/drill_twin/assimilation/bit_state/{name}' in written
+        assert f'/drill_twin/assimilation/germ/{name}' in written
+    assert '/diagnostics' in written and '/rig/truth/bit_state' in written
+
+
+@pytest.mark.parametrize('args, words', [
+    (['--members', '1'], ['--members', '>= 2']),
+    (['--measurements', 'top_torque,colour'], ['--measurements', 'colour']),
+    (['--settle', '-1'], ['--settle']),
+    (['--set', 'assimilation.filter.inflation=0.5'], ['assimilation.filter.inflation']),
+])
+def test_assimilate_refuses_bad_input_in_one_line(rig_log, tmp_path, args, words):
+    assert_one_line(drill_twin('assimilate', str(rig_log), '--out', str(tmp_path / 'e.mcap'),
+                               *args), *words)
+
+
+def test_assimilate_refuses_a_log_without_measurements(tmp_path):
+    from drill_twin.recording.synthetic import write_synthetic_log
+
+    path = tmp_path / 'twin.mcap'
+    write_synthetic_log(path, duration_s=0.5)
+    assert_one_line(drill_twin('assimilate', str(path), '--out', str(tmp_path / 'e.mcap')),
+                    'no measurement topics')
+    assert_one_line(drill_twin('assimilate', str(tmp_path / 'missing.mcap'), '--out',
+                               str(tmp_path / 'e.mcap')), 'missing.mcap')
+
+
+def test_rig_refuses_bad_input_in_one_line(tmp_path):
+    assert_one_line(drill_twin('rig', '--out', str(tmp_path / 'r.txt')), '--out')
+    assert_one_line(drill_twin('rig', '--out', str(tmp_path / 'r.mcap'), '--duration', '0'),
+                    '--duration')
+    assert_one_line(drill_twin('rig', '--out', str(tmp_path / 'r.mcap'), '--set',
+                               'assimilation.sensors.downhole.delay_s=-1'), 'delay_s')
+
+
+def test_a_reading_has_the_configured_bias_and_noise():
+    settings = load_assimilation(None, ['assimilation.channels.top_torque.bias=100',
+                                        'assimilation.channels.top_torque.noise_std=30',
+                                        'assimilation.channels.top_torque.noise_relative=0.02'])
+    value = np.full(20000, 5000.0)
+    errors = read(settings, 'top_torque', value, np.random.default_rng(0)) - value
+    expected = np.hypot(30.0, 0.02 * 5000.0)
+    assert abs(errors.mean() - 100.0) < 5 * expected / np.sqrt(value.size)
+    assert abs(errors.std() / expected - 1) < 0.03
