@@ -163,3 +163,147 @@ def test_a_nan_member_does_not_spoil_the_others(system):
     np.testing.assert_allclose(force[[0, 1, 3]],
                                NonlinearForces(system).evaluate(fields).full[[0, 1, 3]],
                                rtol=1e-12, atol=1e-9)
+
+
+# -- the bit-rock law: the numpy implementation the kernel replaced -------------------------
+
+def reference_law(law, rop, omega, germ):
+    """(f, t, lifted, J) of Eq. 25-26 and the blended random law, vectorised with numpy."""
+    e2 = law.e * law.e
+    w = np.where(np.abs(omega) < 1e-9, np.where(omega < 0, -1e-9, 1e-9), omega)
+    s = omega * omega + e2
+    root = np.sqrt(s)
+    slope_ratio = (w * w + e2) / (w * w)
+    force = -rop * slope_ratio / law.a2 + law.a3 * root / law.a2 - law.a1 / law.a2
+    torque = -law.a4 * rop * omega / s - law.a5 * omega / root
+    jacobian = np.empty(rop.shape + (2, 2))
+    jacobian[:, 0, 0] = -slope_ratio / law.a2
+    jacobian[:, 0, 1] = 2 * rop * e2 / (law.a2 * w ** 3) + law.a3 * omega / (law.a2 * root)
+    jacobian[:, 1, 0] = -law.a4 * omega / s
+    jacobian[:, 1, 1] = -law.a4 * rop * (e2 - omega * omega) / (s * s) - law.a5 * e2 / (s * root)
+    if germ is not None:
+        g11, g12, g22 = germ[:, 0, 0], germ[:, 0, 1], germ[:, 1, 1]
+        ok = (rop > 0) & (omega > 0) & (force < 0) & (torque < 0)
+        r, v = np.where(ok, rop, 1.0), np.where(ok, omega, 1.0)
+        p = np.where(ok, force * torque, 1.0)
+        dp = jacobian[:, 0, :] * torque[:, None] + force[:, None] * jacobian[:, 1, :]
+        q1, q2 = p * v / r, p * r / v
+        dq1 = dp * (v / r)[:, None] + np.stack([-p * v / r ** 2, p / r], axis=-1)
+        dq2 = dp * (r / v)[:, None] + np.stack([p / v, -p * r / v ** 2], axis=-1)
+        r1, r2 = np.sqrt(q1), np.sqrt(q2)
+        deviation = np.stack([(g11 - 1) * force - g12 * r1, (g22 - 1) * torque - g12 * r2], -1)
+        d_deviation = np.empty_like(jacobian)
+        d_deviation[:, 0, :] = (g11 - 1)[:, None] * jacobian[:, 0, :] - g12[:, None] * dq1 / (
+            2 * r1[:, None])
+        d_deviation[:, 1, :] = (g22 - 1)[:, None] * jacobian[:, 1, :] - g12[:, None] * dq2 / (
+            2 * r2[:, None])
+        weight = r * r / (r * r + law.rop_scale ** 2)
+        d_weight = 2 * r * law.rop_scale ** 2 / (r * r + law.rop_scale ** 2) ** 2
+        random_jacobian = jacobian + weight[:, None, None] * d_deviation
+        random_jacobian[:, :, 0] += deviation * d_weight[:, None]
+        force = np.where(ok, force + weight * deviation[:, 0], force)
+        torque = np.where(ok, torque + weight * deviation[:, 1], torque)
+        jacobian = np.where(ok[:, None, None], random_jacobian, jacobian)
+    lifted = force >= 0
+    return (np.where(lifted, 0.0, force), np.where(lifted, 0.0, torque), lifted,
+            np.where(lifted[:, None, None], 0.0, jacobian))
+
+
+@pytest.mark.parametrize('random', [False, True])
+def test_the_law_kernel_matches_the_numpy_reference(default_config, random):
+    """Random points over cutting, lift-off, ROP near and below 0, omega near, at and below 0
+    (the floor of 1/omega^2), with and without random germs."""
+    from drill_twin.dynamics.bit_rock import BitRockLaw
+    law = BitRockLaw.from_config(default_config.bit_rock)
+    rng = np.random.default_rng(5)
+    m = 4000
+    rop = rng.normal(2e-3, 3e-3, m)
+    omega = rng.normal(3.0, 6.0, m)
+    omega[:20] = rng.normal(0, 1e-9, 20)
+    omega[20:25] = 0.0
+    rop[25:60] = rng.normal(0, 1e-4, 35)
+    germ = None
+    if random:
+        germ = np.eye(2) + 0.1 * rng.normal(size=(m, 2, 2))
+        germ = 0.5 * (germ + germ.transpose(0, 2, 1))
+    expected = reference_law(law, rop, omega, germ)
+    result = law.forces_and_jacobian(rop, omega, germ)
+    assert expected[2].any() and not expected[2].all()         # lift-off and cutting occur
+    np.testing.assert_array_equal(result[2], expected[2])
+    for got, want in zip((result[0], result[1]), expected[:2]):
+        np.testing.assert_allclose(got, want, rtol=1e-13, atol=1e-13 * np.abs(want).max())
+    # Entries of J scale very differently (d/dROP ~ 1e9, d/domega ~ 1e4): each on its own.
+    for r in range(2):
+        for c in range(2):
+            want = expected[3][:, r, c]
+            np.testing.assert_allclose(result[3][:, r, c], want, rtol=1e-12,
+                                       atol=1e-13 * np.abs(want).max())
+    force, torque, lifted = law.forces(rop, omega, germ)          # the same kernel
+    np.testing.assert_array_equal(force, result[0])
+    np.testing.assert_array_equal(lifted, result[2])
+
+
+# -- the compiled step and the observer -----------------------------------------------------
+
+def test_observe_reads_the_fields_of_the_state(default_config):
+    """Observation's stations, hook and top torque against the field-wise vectors Phi q
+    (with the driven rotation on theta_x), computed here directly."""
+    from drill_twin.dynamics.simulator import Simulator
+    simulator = Simulator(default_config, members=3,
+                          germs=np.eye(2) + np.zeros((3, 2, 2)))
+    rng = np.random.default_rng(4)
+    simulator.state.q = simulator.state.q + 1e-3 * rng.normal(size=simulator.state.q.shape)
+    simulator.state.q_rate = rng.normal(size=simulator.state.q.shape)
+    simulator.state.q_acceleration = rng.normal(size=simulator.state.q.shape)
+    simulator.state.top_acceleration_rad_per_s2 = 0.7
+    system, state = simulator.system, simulator.state
+    theta_x = system.field(1)
+    u = system.physical(state.q)
+    rate = system.physical(state.q_rate)
+    rate[:, theta_x] += state.top_speed_rad_per_s
+    acceleration = system.physical(state.q_acceleration)
+    acceleration[:, theta_x] += 0.7
+    observation = simulator.observe(detailed=2)
+    for k, station in enumerate(system.stations):
+        for name, field in (('station_displacement_m', u), ('station_velocity_m_per_s', rate),
+                            ('station_acceleration_m_per_s2', acceleration)):
+            expected = field[:2] @ station.rows[:3].T
+            np.testing.assert_allclose(getattr(observation, name)[:, k], expected,
+                                       rtol=1e-10, atol=1e-12 * np.abs(expected).max())
+        spin = rate[:2] @ station.rows[3:].T
+        np.testing.assert_allclose(observation.station_spin_rate_rad_per_s[:, k], spin,
+                                   rtol=1e-10, atol=1e-12 * np.abs(spin).max())
+    np.testing.assert_allclose(observation.hook_position_m, u[:2, 0], rtol=1e-12)
+    torque = (acceleration[:2] @ system.driven_rows['mass']
+              + rate[:2] @ system.driven_rows['damping']
+              - simulator.last.full[:2, theta_x].sum(axis=1))
+    np.testing.assert_allclose(observation.top_torque_nm, torque, rtol=1e-9,
+                               atol=1e-12 * np.abs(torque).max())
+    assert observation.weight_on_bit_n.shape == (3,)
+
+
+def test_a_step_with_wall_contact_matches_single_member_steps(default_config):
+    """The compiled step on a batch with members pressed on the wall (Woodbury correction
+    of some members only) equals each member stepped alone, and conserves the touch flags."""
+    from drill_twin.dynamics.simulator import Simulator
+    members = 3
+    germs = np.eye(2) + np.array([0.0, 0.02, -0.03])[:, None, None] * np.array(
+        [[1.0, 0.5], [0.5, -1.0]])
+    batch = Simulator(default_config, members=members, germs=germs)
+    bending = batch.system.blocks['bending_y']
+    q, rate = batch.state.q.copy(), batch.state.q_rate.copy()
+    q[1:, bending.columns] *= 40.0                # members 1 and 2 on the wall, 0 free
+    batch.reset(q, rate)
+    for _ in range(4):
+        batch.step()
+    touched = batch.last.contact.in_contact.any(axis=1)
+    assert not touched[0] and touched[1:].all()
+    for member in range(members):
+        alone = Simulator(default_config, members=1, germs=germs[member:member + 1])
+        alone.reset(q[member:member + 1], rate[member:member + 1])
+        for _ in range(4):
+            alone.step()
+        np.testing.assert_allclose(alone.state.q[0], batch.state.q[member], rtol=1e-9,
+                                   atol=1e-12 * np.abs(batch.state.q).max())
+        np.testing.assert_allclose(alone.last.weight_on_bit_n[0],
+                                   batch.last.weight_on_bit_n[member], rtol=1e-9)

@@ -37,12 +37,17 @@ and the outer equation would have no root at the jump.)
 
 Nothing here can fail for finite inputs: continuous functions on brackets with a sign
 change, and at most a fixed number of halvings.
+
+The solve is compiled (:func:`solve_one`, one member, called by the Newmark step kernel);
+:func:`solve_bit_equation` runs it over a batch.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from drill_twin.dynamics.bit_rock import BitRockLaw
+from drill_twin.dynamics.bit_rock import (BitRockLaw, cutting_rate, maximum, minimum,
+                                          randomised_point, torque_of_force)
+from drill_twin.dynamics.compiled import inline, kernel
 
 ROOT_ITERATIONS = 200
 """Cap of the bracketed iterations (Illinois with bisection guard: ~10 are used)."""
@@ -51,6 +56,7 @@ OMEGA_TOLERANCE = 1e-13
 FORCE_TOLERANCE = 1e-8
 """Width of the bracket on the force parameter P (N, plus 1e-14 relative): through c1 ~ 4e-8
 (m/s)/N it moves ROP by less than 1e-13 m/s."""
+FORCE_RELATIVE_TOLERANCE = 1e-14
 ROP_TOLERANCE = 1e-16
 """Residual of the axial equation (m/s) at which it is solved."""
 BISECT_AFTER = 4
@@ -74,174 +80,216 @@ def solve_bit_equation(law: BitRockLaw, b, c, rho, germ=None, omega_guess=None):
         (rop, omega, force, torque, lifted, on_bottom, cutting), arrays of shape (m,): lifted
         when the rock's axial force is zero.
     """
-    b = np.asarray(b, dtype=float)
-    c = np.asarray(c, dtype=float)
-    rho = np.asarray(rho, dtype=float)
-    b1, b2 = b[:, 0], b[:, 1]
-    c1, c2 = c[:, 0], c[:, 1]
-    guess = b2.copy() if omega_guess is None else np.asarray(omega_guess, dtype=float).copy()
-    # The free bit (P <= 0) turns at omega = b2 with no torque: free if it does not reach
-    # the bottom, or outruns the law's cut at zero force, at that speed.
-    free = ~(b1 > np.maximum(rho, law.cutting_rate(0.0, b2)))
-    on = ~free
-    warm = guess.copy()                             # the last omega found, per member
+    b = np.ascontiguousarray(b, dtype=float)
+    c = np.ascontiguousarray(c, dtype=float)
+    rho = np.ascontiguousarray(rho, dtype=float)
+    m = b.shape[0]
+    guess = b[:, 1].copy() if omega_guess is None else np.array(omega_guess, dtype=float)
+    random = germ is not None
+    germs = np.ascontiguousarray(germ, dtype=float) if random else np.eye(2)[None]
+    out = np.empty((7, m))
+    solve_batch(b, c, rho, germs, random, guess, law.constants, out)
+    return (out[0], out[1], out[2], out[3], out[4] > 0, out[5] > 0, out[6])
 
-    def axial_residual(parameter):
-        omega = _torsion(law, parameter, b2, c2, rho, germ, warm)
-        warm[:] = np.where(np.isfinite(omega), omega, warm)
-        _, rop, f1, _, _ = _point(law, parameter, omega, rho, germ)
-        return rop - b1 - c1 * f1
 
+@kernel
+def solve_batch(b, c, rho, germ, random, guess, k, out):
+    """solve_one for every row of b, c (m, 2), rho, guess (m,); out (7, m): rop, omega,
+    force, torque, lifted, on bottom, cutting rate (flags as 0/1)."""
+    last = germ.shape[0] - 1
+    for i in range(b.shape[0]):
+        g = min(i, last)
+        rop, omega, f1, f2, parameter, cut = solve_one(
+            b[i, 0], b[i, 1], c[i, 0], c[i, 1], rho[i], germ[g, 0, 0], germ[g, 0, 1],
+            germ[g, 1, 1], random, guess[i], k)
+        out[0, i], out[1, i], out[2, i], out[3, i] = rop, omega, f1, f2
+        out[4, i] = 1.0 if f1 >= 0.0 else 0.0
+        out[5, i] = 1.0 if parameter > 0 else 0.0
+        out[6, i] = cut
+
+
+@kernel
+def solve_one(b1, b2, c1, c2, rho, g11, g12, g22, random, guess, k):
+    """One member's solve (module docstring): (rop, omega, F1, F2, P, cutting rate)."""
+    germ = (g11, g12, g22, random)
+    if not b1 > maximum(rho, cutting_rate(0.0, b2, k)):
+        # The free bit (P <= 0) turns at omega = b2 with no torque: it does not reach the
+        # bottom, or outruns the law's cut at zero force, at that speed.
+        return b1, b2, 0.0, 0.0, 0.0, cutting_rate(0.0, b2, k)
+    warm = np.empty(1)                               # the last omega found
+    warm[0] = guess
     # The mean law's root at the guessed speed, as the centre of a bracket widened by
     # doublings: G(0) = max(rho, R(0, b2)) - b1 < 0 on the left, and F1 ~ G11 f for large
     # |f| makes G -> +inf on the right.
-    centre = np.where(on, _mean_axial_root(law, np.clip(guess, np.minimum(0.0, b2),
-                                                         np.maximum(0.0, b2)),
-                                           b1, c1, rho), 0.0)
+    low_b2, high_b2 = minimum(0.0, b2), maximum(0.0, b2)
+    centre = _mean_axial_root(maximum(minimum(guess, high_b2), low_b2), b1, c1, rho, k)
     half = 0.02 * centre + 1.0
-    lo, hi = np.maximum(centre - half, 0.0), centre + half
-    r_lo, r_hi = axial_residual(lo), axial_residual(hi)
+    lo, hi = maximum(centre - half, 0.0), centre + half
+    r_lo = _axial_residual(lo, b1, b2, c1, c2, rho, germ, warm, k)
+    r_hi = _axial_residual(hi, b1, b2, c1, c2, rho, germ, warm, k)
     for _ in range(EXPANSIONS):
-        left = on & (r_lo > 0)
-        right = on & ~left & (r_hi < 0)
-        if not (left.any() or right.any()):
+        left = r_lo > 0
+        right = not left and r_hi < 0
+        if not (left or right):
             break
-        half = np.where(left | right, 2.0 * half, half)
-        hi, r_hi = np.where(left, lo, hi), np.where(left, r_lo, r_hi)
-        lo, r_lo = np.where(right, hi, lo), np.where(right, r_hi, r_lo)
-        lo = np.where(left, np.maximum(centre - half, 0.0), lo)
-        hi = np.where(right, centre + half, hi)
-        r_lo = np.where(left, axial_residual(lo), r_lo)
-        r_hi = np.where(right, axial_residual(hi), r_hi)
-    parameter = _illinois(axial_residual, lo, hi, r_lo, r_hi,
-                          lambda x: FORCE_TOLERANCE + 1e-14 * np.abs(x), ROP_TOLERANCE,
-                          active=on)
-    parameter = np.where(on, parameter, 0.0)
-    omega = np.where(on, _torsion(law, parameter, b2, c2, rho, germ, warm), b2)
-    _, rop, force, torque, cut = _point(law, parameter, omega, rho, germ)
-    rop = np.where(on, rop, b1)
-    lifted = force >= 0.0
-    return rop, omega, force, torque, lifted, parameter > 0, cut
+        half = 2.0 * half
+        if left:
+            hi, r_hi = lo, r_lo
+            lo = maximum(centre - half, 0.0)
+            r_lo = _axial_residual(lo, b1, b2, c1, c2, rho, germ, warm, k)
+        else:
+            lo, r_lo = hi, r_hi
+            hi = centre + half
+            r_hi = _axial_residual(hi, b1, b2, c1, c2, rho, germ, warm, k)
+    # Illinois on the axial equation (see _illinois_step for the rules).
+    x, done = _illinois_start(lo, hi, r_lo, r_hi, FORCE_TOLERANCE, FORCE_RELATIVE_TOLERANCE,
+                              ROP_TOLERANCE)
+    last_side, reference, count = 0, hi - lo, 0
+    for _ in range(ROOT_ITERATIONS):
+        if done:
+            break
+        trial, bisect, count, reference = _illinois_trial(lo, hi, r_lo, r_hi, count,
+                                                          reference)
+        r_trial = _axial_residual(trial, b1, b2, c1, c2, rho, germ, warm, k)
+        x, lo, hi, r_lo, r_hi, last_side, done = _illinois_step(
+            x, trial, r_trial, bisect, lo, hi, r_lo, r_hi, last_side, FORCE_TOLERANCE,
+            FORCE_RELATIVE_TOLERANCE, ROP_TOLERANCE)
+    omega = _torsion(x, b2, c2, rho, germ, warm[0], k)
+    rop, f1, f2, cut = _point(x, omega, rho, germ, k)
+    return rop, omega, f1, f2, x, cut
 
 
-def _torsion(law, parameter, b2, c2, rho, germ, guess):
+@kernel
+def _axial_residual(parameter, b1, b2, c1, c2, rho, germ, warm, k):
+    """G(P) = ROP(P, omega(P)) - b1 - c1 F1; warm[0]: the last omega found (updated)."""
+    omega = _torsion(parameter, b2, c2, rho, germ, warm[0], k)
+    if np.isfinite(omega):
+        warm[0] = omega
+    rop, f1, _, _ = _point(parameter, omega, rho, germ, k)
+    return rop - b1 - c1 * f1
+
+
+@kernel
+def _torsion_residual(omega, parameter, b2, c2, rho, germ, k):
+    return omega - b2 - c2 * _point(parameter, omega, rho, germ, k)[2]
+
+
+@kernel
+def _torsion(parameter, b2, c2, rho, germ, guess, k):
     """omega solving omega = b2 + c2 F2(P, omega) at given P (bracketed, module docstring)."""
-    def residual(omega):
-        return omega - b2 - c2 * _point(law, parameter, omega, rho, germ)[3]
-
-    zero = np.zeros_like(b2)
-    r_b2 = residual(b2)
-    lo, hi, r_lo, r_hi = _ordered(zero, b2, -b2, r_b2)              # F2(P, 0) = 0
-    missing = ~_brackets(r_lo, r_hi)
-    if missing.any():                               # a random torque that drives the bit
-        reach = np.abs(r_b2) + 1e-3                 # c2 |F2(P, b2)|
+    r_b2 = _torsion_residual(b2, parameter, b2, c2, rho, germ, k)
+    if b2 < 0.0:                                        # F2(P, 0) = 0: r(0) = -b2
+        lo, hi, r_lo, r_hi = b2, 0.0, r_b2, -b2
+    else:
+        lo, hi, r_lo, r_hi = 0.0, b2, -b2, r_b2
+    if not _brackets(r_lo, r_hi):                       # a random torque that drives the bit
+        reach = abs(r_b2) + 1e-3                        # c2 |F2(P, b2)|
+        direction = -1.0 if b2 < 0 else 1.0
         for _ in range(EXPANSIONS):
-            trial = b2 + np.sign(np.where(b2 == 0, 1.0, b2)) * reach
-            lo, hi, r_lo, r_hi = _extend(missing, lo, hi, r_lo, r_hi, trial, residual(trial))
-            missing &= ~_brackets(r_lo, r_hi)
-            if not missing.any():
+            trial = b2 + direction * reach
+            r_trial = _torsion_residual(trial, parameter, b2, c2, rho, germ, k)
+            if trial < lo:
+                lo, r_lo = trial, r_trial
+            if trial > hi:
+                hi, r_hi = trial, r_trial
+            if _brackets(r_lo, r_hi):
                 break
             reach = 2.0 * reach
-    start = np.clip(guess, lo, hi)
-    lo, hi, r_lo, r_hi = _narrow(lo, hi, r_lo, r_hi, start, residual(start))
-    return _illinois(residual, lo, hi, r_lo, r_hi,
-                     lambda x: OMEGA_TOLERANCE * (1.0 + np.abs(x)), OMEGA_TOLERANCE)
-
-
-def _mean_axial_root(law, omega, b1, c1, rho):
-    """P of the mean law's axial equation at a given omega, in closed form."""
-    z = law._cutting_z(omega)
-    r0 = law.cutting_rate(0.0, omega)
-    top = np.maximum(rho, r0)
-    cut_force = (r0 - b1) / (c1 + law.a2 * z * z)
-    resting = b1 + c1 * cut_force <= rho
-    force = np.where(resting, (rho - b1) / c1, cut_force)
-    return np.where(b1 > top, -force, 0.0)
-
-
-def _point(law, parameter, omega, rho, germ):
-    """The graph's point at P (module docstring): (P, ROP, F1, F2, cutting rate)."""
-    on = parameter > 0
-    force = np.where(on, -parameter, 0.0)
-    cut = law.cutting_rate(force, omega)
-    rop = np.where(on, np.maximum(rho, cut), np.maximum(rho, law.cutting_rate(0.0, omega))
-                   + parameter)
-    torque = np.where(on, law.torque_of_force(force, omega, cut), 0.0)
-    f1, f2 = law.randomised(force, torque, rop, cut, omega, germ)
-    return parameter, rop, np.where(on, f1, 0.0), np.where(on, f2, 0.0), cut
-
-
-def _brackets(r_lo, r_hi):
-    return (np.sign(r_lo) * np.sign(r_hi) <= 0) & np.isfinite(r_lo) & np.isfinite(r_hi)
-
-
-def _ordered(a, b, r_a, r_b):
-    swap = b < a
-    return (np.where(swap, b, a), np.where(swap, a, b), np.where(swap, r_b, r_a),
-            np.where(swap, r_a, r_b))
-
-
-def _extend(mask, lo, hi, r_lo, r_hi, trial, r_trial):
-    """Grow [lo, hi] to include ``trial`` for the members in ``mask``."""
-    below = mask & (trial < lo)
-    above = mask & (trial > hi)
-    return (np.where(below, trial, lo), np.where(above, trial, hi),
-            np.where(below, r_trial, r_lo), np.where(above, r_trial, r_hi))
-
-
-def _narrow(lo, hi, r_lo, r_hi, x, r_x):
-    """Replace the end of [lo, hi] whose residual has the sign of r(x)."""
-    usable = np.isfinite(r_x) & _brackets(r_lo, r_hi)
-    left = usable & (np.sign(r_x) == np.sign(r_lo))
-    right = usable & ~left
-    return (np.where(left, x, lo), np.where(right, x, hi), np.where(left, r_x, r_lo),
-            np.where(right, r_x, r_hi))
-
-
-def _illinois(func, lo, hi, r_lo, r_hi, tolerance, residual_tolerance, active=None):
-    """A root of ``func`` in each bracket [lo, hi] (residuals r_lo, r_hi of opposite signs):
-    regula falsi with the Illinois modification, and a bisection whenever the secant point is
-    not inside the bracket or the bracket has not halved in BISECT_AFTER steps. Converged when
-    the bracket, or a secant step, is below ``tolerance(x)``, or the residual below
-    ``residual_tolerance``. Members outside ``active`` return their start."""
-    lo, hi = lo.copy(), hi.copy()
-    r_lo, r_hi = r_lo.copy(), r_hi.copy()
-    x = np.where(np.abs(r_lo) <= np.abs(r_hi), lo, hi)
-    done = ((np.minimum(np.abs(r_lo), np.abs(r_hi)) <= residual_tolerance)
-            | ~np.isfinite(r_lo) | ~np.isfinite(r_hi))
-    if active is not None:
-        done |= ~active
-    done |= (hi - lo) <= tolerance(x)
-    last_side = np.zeros(lo.shape, dtype=int)
-    reference = hi - lo                               # the width BISECT_AFTER steps ago
-    count = 0
+    start = maximum(minimum(guess, hi), lo)
+    r_start = _torsion_residual(start, parameter, b2, c2, rho, germ, k)
+    if np.isfinite(r_start) and _brackets(r_lo, r_hi):  # narrow to [lo, start] or [start, hi]
+        if np.sign(r_start) == np.sign(r_lo):
+            lo, r_lo = start, r_start
+        else:
+            hi, r_hi = start, r_start
+    x, done = _illinois_start(lo, hi, r_lo, r_hi, OMEGA_TOLERANCE, OMEGA_TOLERANCE,
+                              OMEGA_TOLERANCE)
+    last_side, reference, count = 0, hi - lo, 0
     for _ in range(ROOT_ITERATIONS):
-        if done.all():
+        if done:
             break
-        width = hi - lo
-        count += 1
-        stalled = np.zeros(lo.shape, dtype=bool)
-        if count == BISECT_AFTER:
-            stalled = width > 0.5 * reference
-            reference, count = width, 0
-        with np.errstate(invalid='ignore', divide='ignore', over='ignore'):
-            secant = hi - r_hi * width / (r_hi - r_lo)
-        bisect = stalled | ~np.isfinite(secant) | (secant <= lo) | (secant >= hi)
-        trial = np.where(bisect, lo + 0.5 * width, secant)
-        trial = np.where(done, x, trial)
-        r_trial = func(trial)
-        same_as_lo = np.sign(r_trial) == np.sign(r_lo)
-        move_lo = ~done & same_as_lo
-        move_hi = ~done & ~same_as_lo
-        # Illinois: the end kept twice in a row has its residual halved.
-        r_hi = np.where(move_lo & (last_side == -1), 0.5 * r_hi, r_hi)
-        r_lo = np.where(move_hi & (last_side == 1), 0.5 * r_lo, r_lo)
-        lo, r_lo = np.where(move_lo, trial, lo), np.where(move_lo, r_trial, r_lo)
-        hi, r_hi = np.where(move_hi, trial, hi), np.where(move_hi, r_trial, r_hi)
-        last_side = np.where(move_lo, -1, np.where(move_hi, 1, last_side))
-        moved = np.abs(trial - x)
-        x = np.where(done, x, trial)
-        small = tolerance(x)
-        done |= ((np.abs(r_trial) <= residual_tolerance) | ((hi - lo) <= small)
-                 | ~np.isfinite(r_trial) | (~bisect & (moved <= small)))
+        trial, bisect, count, reference = _illinois_trial(lo, hi, r_lo, r_hi, count,
+                                                          reference)
+        r_trial = _torsion_residual(trial, parameter, b2, c2, rho, germ, k)
+        x, lo, hi, r_lo, r_hi, last_side, done = _illinois_step(
+            x, trial, r_trial, bisect, lo, hi, r_lo, r_hi, last_side, OMEGA_TOLERANCE,
+            OMEGA_TOLERANCE, OMEGA_TOLERANCE)
     return x
+
+
+@inline
+def _mean_axial_root(omega, b1, c1, rho, k):
+    """P of the mean law's axial equation at a given omega, in closed form."""
+    z = omega / np.sqrt(omega * omega + k[5] * k[5])
+    r0 = cutting_rate(0.0, omega, k)
+    top = maximum(rho, r0)
+    cut_force = (r0 - b1) / (c1 + k[1] * z * z)
+    force = (rho - b1) / c1 if b1 + c1 * cut_force <= rho else cut_force
+    return -force if b1 > top else 0.0
+
+
+@kernel
+def _point(parameter, omega, rho, germ, k):
+    """The graph's point at P (module docstring): (ROP, F1, F2, cutting rate)."""
+    if parameter > 0:
+        force = -parameter
+        cut = cutting_rate(force, omega, k)
+        rop = maximum(rho, cut)
+        torque = torque_of_force(force, omega, cut, k)
+        f1, f2 = randomised_point(force, torque, rop, cut, omega, germ[0], germ[1], germ[2],
+                                  germ[3], k)
+        return rop, f1, f2, cut
+    cut = cutting_rate(0.0, omega, k)
+    return maximum(rho, cut) + parameter, 0.0, 0.0, cut
+
+
+@inline
+def _brackets(r_lo, r_hi):
+    return np.sign(r_lo) * np.sign(r_hi) <= 0 and np.isfinite(r_lo) and np.isfinite(r_hi)
+
+
+@inline
+def _illinois_start(lo, hi, r_lo, r_hi, tolerance, relative, residual_tolerance):
+    """The start of the Illinois method on [lo, hi]: (x, done)."""
+    x = lo if abs(r_lo) <= abs(r_hi) else hi
+    done = (minimum(abs(r_lo), abs(r_hi)) <= residual_tolerance or not np.isfinite(r_lo)
+            or not np.isfinite(r_hi) or hi - lo <= tolerance + relative * abs(x))
+    return x, done
+
+
+@inline
+def _illinois_trial(lo, hi, r_lo, r_hi, count, reference):
+    """The next point: regula falsi, or a bisection when the secant point is not inside the
+    bracket or the bracket has not halved in BISECT_AFTER steps. (trial, bisect, count,
+    reference)."""
+    width = hi - lo
+    count += 1
+    stalled = False
+    if count == BISECT_AFTER:
+        stalled = width > 0.5 * reference
+        reference, count = width, 0
+    secant = hi - r_hi * width / (r_hi - r_lo)
+    bisect = stalled or not np.isfinite(secant) or secant <= lo or secant >= hi
+    trial = lo + 0.5 * width if bisect else secant
+    return trial, bisect, count, reference
+
+
+@inline
+def _illinois_step(x, trial, r_trial, bisect, lo, hi, r_lo, r_hi, last_side, tolerance,
+                   relative, residual_tolerance):
+    """Move the end of the bracket whose residual has the sign of r(trial); Illinois: the
+    end kept twice in a row has its residual halved. Converged when the bracket, or a
+    secant step, is below the tolerance, or the residual below ``residual_tolerance``."""
+    if np.sign(r_trial) == np.sign(r_lo):
+        if last_side == -1:
+            r_hi = 0.5 * r_hi
+        lo, r_lo, last_side = trial, r_trial, -1
+    else:
+        if last_side == 1:
+            r_lo = 0.5 * r_lo
+        hi, r_hi, last_side = trial, r_trial, 1
+    moved = abs(trial - x)
+    small = tolerance + relative * abs(trial)
+    done = (abs(r_trial) <= residual_tolerance or hi - lo <= small
+            or not np.isfinite(r_trial) or (not bisect and moved <= small))
+    return trial, lo, hi, r_lo, r_hi, last_side, done

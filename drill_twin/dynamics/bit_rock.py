@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from drill_twin.config.schema import BitRock
+from drill_twin.dynamics.compiled import inline, kernel
 
 OMEGA_FLOOR_RAD_PER_S = 1e-9
 """|omega| is kept above this in 1 / omega^2 (the law is singular at omega = 0)."""
@@ -58,54 +59,30 @@ class BitRockLaw:
                    a4=bit_rock.a4_n_rad, a5=bit_rock.a5_n_m, e=bit_rock.regularization_rad_per_s,
                    rop_scale=bit_rock.random_law_rop_scale_m_per_s)
 
+    @property
+    def constants(self) -> np.ndarray:
+        """(a1, a2, a3, a4, a5, e, r): the law's constants as the kernels take them."""
+        return np.array([self.a1, self.a2, self.a3, self.a4, self.a5, self.e, self.rop_scale])
+
     def mean(self, rop, omega):
-        """(f_bit, t_bit) of the regularised law, without the lift-off cut (any shape)."""
-        omega_safe = _away_from_zero(omega)
-        s = omega * omega + self.e * self.e
-        root = np.sqrt(s)
-        force = (-rop * (omega_safe * omega_safe + self.e * self.e)
-                 / (self.a2 * omega_safe * omega_safe)
-                 + self.a3 * root / self.a2 - self.a1 / self.a2)
-        torque = -self.a4 * rop * omega / s - self.a5 * omega / root
+        """(f_bit, t_bit) of the regularised law, without the lift-off cut (any shape; complex
+        arguments for complex-step differentiation)."""
+        force, torque, _, _ = _call_law(self, rop, omega, None, cut=False)
         return force, torque
 
     def forces(self, rop, omega, germ=None):
         """(f_bit, t_bit, lifted): the law with lift-off, randomised by ``germ`` if given.
 
-        rop, omega: shape (m,); germ: (m, 2, 2) or None. Returns arrays of shape (m,).
+        rop, omega: shape (m,) (real, or complex for complex-step derivatives); germ:
+        (m, 2, 2) or None. Returns arrays of shape (m,).
         """
-        force, torque = self.mean(rop, omega)
-        if germ is not None:
-            force, torque = _randomise(force, torque, rop, omega, germ, self.rop_scale)
-        lifted = np.real(force) >= 0.0
-        zero = np.zeros_like(force)
-        return np.where(lifted, zero, force), np.where(lifted, zero, torque), lifted
+        force, torque, lifted, _ = _call_law(self, rop, omega, germ)
+        return force, torque, lifted
 
     def forces_and_jacobian(self, rop, omega, germ=None):
         """(f, t, lifted, J) with J[m] = d(f, t)/d(ROP, omega), shape (m, 2, 2) (analytic)."""
-        rop = np.asarray(rop, dtype=float)
-        omega = np.asarray(omega, dtype=float)
-        e2 = self.e * self.e
-        w = _away_from_zero(omega)
-        s = omega * omega + e2
-        root = np.sqrt(s)
-        slope_ratio = (w * w + e2) / (w * w)                    # 1 / Z^2
-        force = -rop * slope_ratio / self.a2 + self.a3 * root / self.a2 - self.a1 / self.a2
-        torque = -self.a4 * rop * omega / s - self.a5 * omega / root
-        jacobian = np.empty(rop.shape + (2, 2))
-        jacobian[..., 0, 0] = -slope_ratio / self.a2
-        jacobian[..., 0, 1] = 2 * rop * e2 / (self.a2 * w ** 3) + self.a3 * omega / (self.a2 * root)
-        jacobian[..., 1, 0] = -self.a4 * omega / s
-        jacobian[..., 1, 1] = (-self.a4 * rop * (e2 - omega * omega) / (s * s)
-                               - self.a5 * e2 / (s * root))
-        if germ is not None:
-            force, torque, jacobian = _randomise_with_jacobian(force, torque, jacobian, rop,
-                                                               omega, germ, self.rop_scale)
-        lifted = force >= 0.0
-        force = np.where(lifted, 0.0, force)
-        torque = np.where(lifted, 0.0, torque)
-        jacobian = np.where(lifted[..., None, None], 0.0, jacobian)
-        return force, torque, lifted, jacobian
+        return _call_law(self, np.asarray(rop, dtype=float), np.asarray(omega, dtype=float),
+                         germ)
 
     # -- the law as the bit's solve uses it: ROP and torque as functions of the force ------
     def cutting_rate(self, force, omega):
@@ -186,58 +163,161 @@ class BitRockLaw:
         return self.mean(self.steady_rop(omega, weight_on_bit_n), omega)[1]
 
 
-def _away_from_zero(omega):
-    """omega with its real part kept at least OMEGA_FLOOR in magnitude (imaginary part, used
-    by complex-step differentiation, untouched)."""
-    real = np.real(omega)
-    floored = np.where(real < 0, -OMEGA_FLOOR_RAD_PER_S, OMEGA_FLOOR_RAD_PER_S)
-    return np.where(np.abs(real) < OMEGA_FLOOR_RAD_PER_S, floored + (omega - real), omega)
+# -- the compiled law ----------------------------------------------------------------------
+# One scalar implementation, for float and complex arguments (complex-step derivatives):
+# comparisons read the real parts. The constants k are BitRockLaw.constants.
+
+_IDENTITY_GERM = np.eye(2)[None]
 
 
-def _blend(rop, scale):
-    """w = ROP^2 / (ROP^2 + r^2) and dw/dROP."""
-    square = rop * rop
-    denominator = square + scale * scale
-    return square / denominator, 2 * rop * scale * scale / (denominator * denominator)
+@inline
+def away_from_zero(omega):
+    """omega with its real part kept at least OMEGA_FLOOR in magnitude (imaginary part
+    untouched)."""
+    real = omega.real
+    if abs(real) < OMEGA_FLOOR_RAD_PER_S:
+        floored = -OMEGA_FLOOR_RAD_PER_S if real < 0 else OMEGA_FLOOR_RAD_PER_S
+        return floored + (omega - real)
+    return omega
 
 
-def _randomise_with_jacobian(force, torque, jacobian, rop, omega, germ, scale):
-    """The (blended) random law on C and its Jacobian by the chain rule (mean law outside C)."""
-    g11, g12, g22 = germ[:, 0, 0], germ[:, 0, 1], germ[:, 1, 1]
-    admissible = (rop > 0) & (omega > 0) & (force < 0) & (torque < 0)
-    r = np.where(admissible, rop, 1.0)
-    w = np.where(admissible, omega, 1.0)
-    p = np.where(admissible, force * torque, 1.0)
-    dp = jacobian[..., 0, :] * torque[..., None] + force[..., None] * jacobian[..., 1, :]
-    q1, q2 = p * w / r, p * r / w
-    dq1 = dp * (w / r)[..., None] + np.stack([-p * w / r ** 2, p / r], axis=-1)
-    dq2 = dp * (r / w)[..., None] + np.stack([p / w, -p * r / w ** 2], axis=-1)
+@inline
+def law_point(rop, omega, g11, g12, g22, random, k):
+    """(f, t, J00, J01, J10, J11) of the law at one (ROP, omega), before the lift-off cut:
+    Eq. 25-26 and, with ``random``, the blended random law on C (module docstring) with its
+    Jacobian by the chain rule."""
+    a1, a2, a3, a4, a5, e, scale = k[0], k[1], k[2], k[3], k[4], k[5], k[6]
+    e2 = e * e
+    w = away_from_zero(omega)
+    s = omega * omega + e2
+    root = np.sqrt(s)
+    slope_ratio = (w * w + e2) / (w * w)                        # 1 / Z^2
+    force = -rop * slope_ratio / a2 + a3 * root / a2 - a1 / a2
+    torque = -a4 * rop * omega / s - a5 * omega / root
+    j00 = -slope_ratio / a2
+    j01 = 2 * rop * e2 / (a2 * (w * w * w)) + a3 * omega / (a2 * root)
+    j10 = -a4 * omega / s
+    j11 = -a4 * rop * (e2 - omega * omega) / (s * s) - a5 * e2 / (s * root)
+    if not (random and rop.real > 0 and omega.real > 0 and force.real < 0
+            and torque.real < 0):
+        return force, torque, j00, j01, j10, j11
+    r, v = rop, omega
+    p = force * torque
+    dp0 = j00 * torque + force * j10
+    dp1 = j01 * torque + force * j11
+    q1, q2 = p * v / r, p * r / v
+    dq10 = dp0 * (v / r) - p * v / (r * r)
+    dq11 = dp1 * (v / r) + p / r
+    dq20 = dp0 * (r / v) + p / v
+    dq21 = dp1 * (r / v) - p * r / (v * v)
     r1, r2 = np.sqrt(q1), np.sqrt(q2)
-    deviation = np.stack([(g11 - 1) * force - g12 * r1, (g22 - 1) * torque - g12 * r2], axis=-1)
-    d_deviation = np.empty_like(jacobian)
-    d_deviation[..., 0, :] = ((g11 - 1)[..., None] * jacobian[..., 0, :]
-                              - g12[..., None] * dq1 / (2 * r1[..., None]))
-    d_deviation[..., 1, :] = ((g22 - 1)[..., None] * jacobian[..., 1, :]
-                              - g12[..., None] * dq2 / (2 * r2[..., None]))
-    weight, d_weight = _blend(r, scale)
-    random_jacobian = jacobian + weight[..., None, None] * d_deviation
-    random_jacobian[..., :, 0] += deviation * d_weight[..., None]
-    keep = admissible[..., None, None]
-    return (np.where(admissible, force + weight * deviation[..., 0], force),
-            np.where(admissible, torque + weight * deviation[..., 1], torque),
-            np.where(keep, random_jacobian, jacobian))
+    deviation0 = (g11 - 1) * force - g12 * r1
+    deviation1 = (g22 - 1) * torque - g12 * r2
+    d00 = (g11 - 1) * j00 - g12 * dq10 / (2 * r1)
+    d01 = (g11 - 1) * j01 - g12 * dq11 / (2 * r1)
+    d10 = (g22 - 1) * j10 - g12 * dq20 / (2 * r2)
+    d11 = (g22 - 1) * j11 - g12 * dq21 / (2 * r2)
+    square = r * r                                              # the blend w(ROP), dw/dROP
+    denominator = square + scale * scale
+    weight = square / denominator
+    d_weight = 2 * r * scale * scale / (denominator * denominator)
+    return (force + weight * deviation0, torque + weight * deviation1,
+            j00 + weight * d00 + deviation0 * d_weight, j01 + weight * d01,
+            j10 + weight * d10 + deviation1 * d_weight, j11 + weight * d11)
 
 
-def _randomise(force, torque, rop, omega, germ, scale):
-    """The (blended) random law written directly (works for complex arguments)."""
-    g11, g12, g22 = germ[:, 0, 0], germ[:, 0, 1], germ[:, 1, 1]
-    admissible = ((np.real(rop) > 0) & (np.real(omega) > 0) & (np.real(force) < 0)
-                  & (np.real(torque) < 0))
-    safe_rop = np.where(admissible, rop, 1.0)
-    safe_omega = np.where(admissible, omega, 1.0)
-    product = np.where(admissible, force * torque, 1.0)
-    random_force = g11 * force - g12 * np.sqrt(product * safe_omega / safe_rop)
-    random_torque = g22 * torque - g12 * np.sqrt(product * safe_rop / safe_omega)
-    weight = safe_rop * safe_rop / (safe_rop * safe_rop + scale * scale)
-    return (np.where(admissible, force + weight * (random_force - force), force),
-            np.where(admissible, torque + weight * (random_torque - torque), torque))
+@inline
+def cutting_rate(force, omega, k):
+    """R(f, omega) of :meth:`BitRockLaw.cutting_rate` (scalars)."""
+    z = omega / np.sqrt(omega * omega + k[5] * k[5])
+    return z * z * (-k[0] - k[1] * force) + k[2] * omega * z
+
+
+@inline
+def fade_force(omega, k):
+    """f_ref of :meth:`BitRockLaw.fade_force` (scalar)."""
+    threshold = (k[2] * np.sqrt(omega * omega + k[5] * k[5]) - k[0]) / k[1]
+    return minimum(threshold, -TORQUE_FADE_FORCE_N)
+
+
+@inline
+def torque_of_force(force, omega, rate, k):
+    """t_bit of :meth:`BitRockLaw.torque_of_force` (scalars; ``rate`` = R(f, omega))."""
+    root = np.sqrt(omega * omega + k[5] * k[5])
+    share = force / fade_force(omega, k)
+    if share < 0.0:
+        share = 0.0
+    elif share > 1.0:
+        share = 1.0
+    return -(omega / root) * (k[3] * maximum(rate, 0.0) / root + k[4]) * share
+
+
+@inline
+def randomised_point(force, torque, rop, rate, omega, g11, g12, g22, random, k):
+    """(F1, F2) of :meth:`BitRockLaw.randomised` at one point of the law's graph."""
+    if not random:
+        return force, torque
+    if rate > 0 and rop > 0 and omega > 0 and force < 0 and torque < 0:
+        coupling = np.sqrt((force / rop) * (torque / omega))
+        weight = rate * rate / (rate * rate + k[6] * k[6])
+        f1 = force + weight * ((g11 - 1.0) * force - g12 * coupling * omega)
+        f2 = torque + weight * ((g22 - 1.0) * torque - g12 * coupling * rop)
+    else:
+        weight = 0.0 / (k[6] * k[6])
+        f1 = force + weight * ((g11 - 1.0) * force)
+        f2 = torque + weight * ((g22 - 1.0) * torque)
+    return minimum(f1, 0.0), f2
+
+
+@inline
+def minimum(a, b):
+    """np.minimum of two scalars (nan propagates)."""
+    return a if a != a or a < b else b
+
+
+@inline
+def maximum(a, b):
+    """np.maximum of two scalars (nan propagates)."""
+    return a if a != a or a > b else b
+
+
+@kernel
+def bit_law(rop, omega, germ, random, constants, cut, force, torque, lifted, jacobian):
+    """The law at every (rop[i], omega[i]) (m,) into force, torque, lifted (m,) and
+    jacobian (m, 2, 2); germ (m or 1, 2, 2) is used when ``random``; ``cut``: the lift-off
+    cut (f >= 0: all zero and lifted), else the raw law (lifted False)."""
+    last = germ.shape[0] - 1
+    for i in range(rop.shape[0]):
+        g = min(i, last)
+        f, t, j00, j01, j10, j11 = law_point(rop[i], omega[i], germ[g, 0, 0], germ[g, 0, 1],
+                                             germ[g, 1, 1], random, constants)
+        off = cut and f.real >= 0.0
+        lifted[i] = off
+        if off:
+            f = t = j00 = j01 = j10 = j11 = 0.0 * f
+        force[i] = f
+        torque[i] = t
+        jacobian[i, 0, 0] = j00
+        jacobian[i, 0, 1] = j01
+        jacobian[i, 1, 0] = j10
+        jacobian[i, 1, 1] = j11
+
+
+def _call_law(law: BitRockLaw, rop, omega, germ, cut: bool = True):
+    """bit_law on arrays of any (broadcast) shape; (f, t, lifted, J)."""
+    rop, omega = np.broadcast_arrays(rop, omega)
+    shape = rop.shape
+    dtype = np.result_type(rop, omega, float)
+    flat_rop = np.ascontiguousarray(rop, dtype=dtype).reshape(-1)
+    flat_omega = np.ascontiguousarray(omega, dtype=dtype).reshape(-1)
+    size = flat_rop.size
+    force, torque = np.empty(size, dtype), np.empty(size, dtype)
+    lifted = np.empty(size, dtype=bool)
+    jacobian = np.empty((size, 2, 2), dtype)
+    random = germ is not None
+    germs = (np.ascontiguousarray(germ, dtype=float).reshape(-1, 2, 2) if random
+             else _IDENTITY_GERM)
+    bit_law(flat_rop, flat_omega, germs, random, law.constants, cut, force, torque, lifted,
+            jacobian)
+    return (force.reshape(shape)[()], torque.reshape(shape)[()], lifted.reshape(shape)[()],
+            jacobian.reshape(shape + (2, 2)))

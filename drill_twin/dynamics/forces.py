@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from drill_twin.dynamics.bit_rock import BitRockLaw
+from drill_twin.dynamics.compiled import kernel
 from drill_twin.dynamics.contact import ContactForces, accumulate_contact
 from drill_twin.dynamics.finite_strain import StrainOperators, accumulate_finite_strain
 from drill_twin.dynamics.kinetic_coupling import CouplingOperators, accumulate_kinetic_coupling
@@ -123,6 +124,39 @@ class Workspace:
         self.stress = np.empty((se.N_STRAINS, members))
         self.coupling = np.empty((9, members))
         self.tangent = np.empty((members, nodes, 2, 2))
+        self.force_t = np.empty((n_dofs, members))
+        self.radial = np.empty((members, nodes))
+        self.in_contact = np.empty((members, nodes), dtype=bool)
+        self.kinematics = (self.displacement_t, self.theta_x_rate_t, self.theta_x_acceleration_t,
+                           self.bending_y_rate_t, self.bending_y_acceleration_t,
+                           self.bending_z_rate_t)
+        """The six members-last kinematic arrays, in the order of
+        :meth:`NonlinearForces.accumulate`."""
+
+
+@kernel
+def string_forces(switches, strain_arguments, coupling_arguments, contact_arguments,
+                  displacement_t, theta_x_rate_t, theta_x_acceleration_t, bending_y_rate_t,
+                  bending_y_acceleration_t, bending_z_rate_t, strain, linear, stress, coupling,
+                  force_t, radial, in_contact, tangent):
+    """force_t += f_se + f_ke + f_ip (not the bit's), members last: the one place the forces
+    of the string are summed (:meth:`NonlinearForces.accumulate` and the Newmark step
+    kernel call it). switches: (finite strain, kinetic coupling, contact); the arguments of
+    each kernel are those of NonlinearForces. Returns the number of (member, node) pairs
+    touching the wall (radial, in_contact are zero and False without contact)."""
+    if switches[0]:
+        accumulate_finite_strain(displacement_t, *strain_arguments, strain, linear, stress,
+                                 force_t)
+    if switches[1]:
+        accumulate_kinetic_coupling(displacement_t, theta_x_rate_t, theta_x_acceleration_t,
+                                    bending_y_rate_t, bending_y_acceleration_t,
+                                    bending_z_rate_t, *coupling_arguments, coupling, force_t)
+    if not switches[2]:
+        radial[:, :] = 0.0
+        in_contact[:, :] = False
+        return 0
+    return accumulate_contact(displacement_t, theta_x_rate_t, *contact_arguments, force_t,
+                              radial, in_contact, tangent)
 
 
 class NonlinearForces:
@@ -142,6 +176,18 @@ class NonlinearForces:
         self.clearance_m = np.ascontiguousarray(system.clearance_m, dtype=float)
         self.outer_radius_m = np.ascontiguousarray(system.node_outer_radius_m, dtype=float)
         self._workspace = None
+        self._step_workspace = None
+        physics, borehole = self.physics, self.borehole
+        self.switches = (bool(physics.finite_strain), bool(physics.kinetic_coupling),
+                         bool(physics.contact))
+        """Which forces of the string are on: finite strain, kinetic coupling, contact."""
+        self.strain_arguments = self.strain_operators.arguments()
+        self.coupling_arguments = self.coupling_operators.arguments()
+        self.contact_arguments = (system.n_nodes, self.clearance_m, self.outer_radius_m,
+                                  float(borehole.contact_stiffness_n_per_m),
+                                  float(borehole.friction_coefficient),
+                                  float(borehole.friction_regularization_rad_per_s))
+        """The kernels' operands: string_forces takes them as they are."""
 
     def workspace(self, members: int) -> Workspace:
         """The work arrays for a batch of ``members`` (made again only when m changes)."""
@@ -149,42 +195,52 @@ class NonlinearForces:
             self._workspace = Workspace(self.system, members)
         return self._workspace
 
+    def step_workspace(self, members: int) -> Workspace:
+        """Work arrays of the Newmark step for ``members`` (its own: :meth:`evaluate` may run
+        between steps)."""
+        if self._step_workspace is None or self._step_workspace.members != members:
+            self._step_workspace = Workspace(self.system, members)
+        return self._step_workspace
+
+    def accumulate(self, displacement_t, theta_x_rate_t, theta_x_acceleration_t,
+                   bending_y_rate_t, bending_y_acceleration_t, bending_z_rate_t,
+                   work: Workspace, force_t, radial, in_contact) -> int:
+        """force_t += f_se + f_ke + f_ip (not the bit's) of members-last kinematics (the
+        fields of :class:`Kinematics`, transposed: (n_dofs, m), (n_nodes, m) and (2 n_nodes, m)).
+
+        radial, in_contact (m, n_nodes) receive the wall forces and flags (zero and False
+        without contact physics), work.tangent their tangents. Returns the number of
+        (member, node) pairs touching the wall. This is the one place the non-linear forces of
+        the string are summed: :meth:`evaluate` and the Newmark step both call it.
+        """
+        return string_forces(self.switches, self.strain_arguments, self.coupling_arguments,
+                             self.contact_arguments, displacement_t, theta_x_rate_t,
+                             theta_x_acceleration_t, bending_y_rate_t, bending_y_acceleration_t,
+                             bending_z_rate_t, work.strain, work.linear, work.stress,
+                             work.coupling, force_t, radial, in_contact, work.tangent)
+
     def evaluate(self, fields: Kinematics, germ=None) -> ForceEvaluation:
         """f_NL for the fields of a batch; ``germ`` (m, 2, 2) randomises the bit-rock law.
 
         The arrays of the result are new (the integrator keeps results across iterations);
         ``full`` and ``modal`` are transposed views of members-last arrays.
         """
-        system, physics = self.system, self.physics
+        system = self.system
         m = fields.displacement.shape[0]
         work = self.workspace(m)
         force_t = np.zeros((system.n_dofs, m))
-        displacement_t = members_last(fields.displacement, work.displacement_t)
-        theta_x_rate_t = members_last(fields.theta_x_rate, work.theta_x_rate_t)
-        if physics.finite_strain:
-            accumulate_finite_strain(displacement_t, *self.strain_operators.arguments(),
-                                     work.strain, work.linear, work.stress, force_t)
-        if physics.kinetic_coupling:
-            accumulate_kinetic_coupling(
-                displacement_t, theta_x_rate_t,
-                members_last(fields.theta_x_acceleration, work.theta_x_acceleration_t),
-                members_last(fields.bending_y_rate, work.bending_y_rate_t),
-                members_last(fields.bending_y_acceleration, work.bending_y_acceleration_t),
-                members_last(fields.bending_z_rate, work.bending_z_rate_t),
-                *self.coupling_operators.arguments(), work.coupling, force_t)
         radial = np.zeros((m, system.n_nodes))
         in_contact = np.zeros((m, system.n_nodes), dtype=bool)
-        tangent = None
-        if physics.contact:
-            borehole = self.borehole
-            touching = accumulate_contact(
-                displacement_t, theta_x_rate_t, system.n_nodes, self.clearance_m,
-                self.outer_radius_m, float(borehole.contact_stiffness_n_per_m),
-                float(borehole.friction_coefficient),
-                float(borehole.friction_regularization_rad_per_s), force_t, radial, in_contact,
-                work.tangent)
-            if touching:
-                tangent = work.tangent.copy()
+        touching = self.accumulate(
+            members_last(fields.displacement, work.displacement_t),
+            members_last(fields.theta_x_rate, work.theta_x_rate_t),
+            members_last(fields.theta_x_acceleration, work.theta_x_acceleration_t),
+            members_last(fields.bending_y_rate, work.bending_y_rate_t),
+            members_last(fields.bending_y_acceleration, work.bending_y_acceleration_t),
+            members_last(fields.bending_z_rate, work.bending_z_rate_t),
+            work, force_t, radial, in_contact)
+        tangent = work.tangent.copy() if touching else None
+        physics = self.physics
         rop = fields.bit_axial_rate
         omega = fields.theta_x_rate[:, system.bit_node]
         if physics.bit_rock:

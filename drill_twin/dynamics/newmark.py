@@ -47,16 +47,11 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.linalg as la
 
-from drill_twin.dynamics.bit_equation import solve_bit_equation
+from drill_twin.dynamics import newmark_kernel as compiled
 from drill_twin.dynamics.contact import ContactForces
 from drill_twin.dynamics.forces import ForceEvaluation, Kinematics, NonlinearForces
+from drill_twin.dynamics.newmark_kernel import BETA, GAMMA, VELOCITY_SCALE, VERIFY_EVERY  # noqa
 
-BETA = 0.25
-GAMMA = 0.5
-VELOCITY_SCALE = 1e-9
-"""Added to the velocity norm in the convergence test (modal units, sqrt(kg) m/s)."""
-VERIFY_EVERY = 25
-"""A step runs at least two iterations this often, to measure the contraction rate."""
 ON_BOTTOM_TOLERANCE_M = 1e-6
 """The bit counts as on bottom when it is within this of the hole bottom (m)."""
 
@@ -143,8 +138,6 @@ class _BitSolution:
     solved: np.ndarray
 
 
-_BIT_FIELDS = ('rop', 'omega', 'force', 'torque', 'lifted', 'jacobian', 'solved')
-
 
 class NewmarkIntegrator:
     """Average-acceleration Newmark with a cached S0^-1 and an exact bit solve.
@@ -170,7 +163,7 @@ class NewmarkIntegrator:
         self.time_step_s = float(time_step_s)
         self.tolerance = float(tolerance)
         self.max_iterations = int(max_iterations)
-        self.germ = germ
+        self._germ = germ
         n = system.size
         self.mass = system.mass
         self.damping = system.damping
@@ -208,6 +201,32 @@ class NewmarkIntegrator:
         self.top_axial_row = system.top_axial_row
         self.static_hook_load_n = system.model.prestress.hook_load_n
         self.counters = Counters()
+        # The step kernels' operands (newmark_kernel), made once.
+        blocks = [system.blocks[name] for name in ('axial', 'torsional', 'bending_y',
+                                                   'bending_z')]
+        self._shapes = tuple(np.ascontiguousarray(block.shapes) for block in blocks)
+        self._ranges = np.array([[block.rows.start, block.rows.stop, block.columns.start,
+                                  block.columns.stop] for block in blocks], dtype=np.int64)
+        diagonal = (self._stiffness_diagonal if self._stiffness_diagonal is not None
+                    else np.empty(0))
+        damping_blocks, groups, inverse_blocks = _diagonal_blocks(
+            self.damping, la.inv(effective), self._ranges[:, 2:])
+        self._operators = (
+            self._shapes, tuple(np.ascontiguousarray(block.shapes_t) for block in blocks),
+            self._ranges, system.bit_node, system.n_nodes,
+            np.ascontiguousarray(self.mass), self._mass_is_identity,
+            damping_blocks, np.ascontiguousarray(self.stiffness),
+            np.ascontiguousarray(diagonal), inverse_blocks, groups,
+            np.ascontiguousarray(local), np.ascontiguousarray(self.local_response),
+            np.ascontiguousarray(self.local_gram), self.bit_rows, self.bit_response,
+            np.ascontiguousarray(self.bit_flexibility), self.bit_axial_row,
+            forces.bit_axial_index, forces.bit_torsion_index, self.time_step_s,
+            BETA * self.time_step_s ** 2, self.tolerance)
+        without_bit = self._forces_without_bit
+        self._forces_arguments = (without_bit.switches, without_bit.strain_arguments,
+                                  without_bit.coupling_arguments, without_bit.contact_arguments)
+        self._bit_constants = self._law_constants(germ)
+        self._work = None
         self._rate = None                 # per member: contraction rate of its last 2-iteration step
         self._steps_since_verified = None
         self._active = None               # (contact flags, lift-off flags) at the last step
@@ -254,6 +273,23 @@ class NewmarkIntegrator:
                            np.ones(rop.shape, dtype=bool))
         return self._with_bit(evaluation, bit)
 
+    @property
+    def germ(self) -> np.ndarray | None:
+        """(m, 2, 2) random germs of the bit-rock law, or None (mean model)."""
+        return self._germ
+
+    @germ.setter
+    def germ(self, germ: np.ndarray | None) -> None:
+        self._germ = germ
+        self._bit_constants = self._law_constants(germ)
+
+    def _law_constants(self, germ) -> tuple:
+        law = self.forces.law
+        germs = np.eye(2)[None] if germ is None else np.ascontiguousarray(germ, dtype=float)
+        return (float(self.static_bit_force[0]), bool(self.forces.physics.bit_rock),
+                law.constants, float(law.fade_speed_rad_per_s), germs, germ is not None)
+
+
     def with_time_step(self, time_step_s: float) -> 'NewmarkIntegrator':
         """The same integrator (forces, tolerance, germs) with another time step."""
         return NewmarkIntegrator(self.forces, time_step_s, self.tolerance, self.max_iterations,
@@ -278,79 +314,53 @@ class NewmarkIntegrator:
         """Advance ``state`` by dt with the top speed and hook load given for t + dt.
 
         Returns the new state and the step's outcome; on failure the new state holds the
-        last iterate (callers must not continue from it silently).
+        last iterate (callers must not continue from it silently). The arithmetic runs in
+        the kernels of :mod:`drill_twin.dynamics.newmark_kernel`; the forces of the string
+        in :meth:`NonlinearForces.accumulate`.
         """
         dt = self.time_step_s
         top_acceleration = (top_speed_rad_per_s - state.top_speed_rad_per_s) / dt
         top_angle = state.top_angle_rad + 0.5 * dt * (state.top_speed_rad_per_s
                                                       + top_speed_rad_per_s)
-        d_pred = state.q + dt * state.q_rate + (0.5 - BETA) * dt * dt * state.q_acceleration
-        v_pred = state.q_rate + (1.0 - GAMMA) * dt * state.q_acceleration
         load = self._external_load(top_speed_rad_per_s, top_acceleration, hook_load_n)
         members = state.q.shape[0]
-        hole = state.hole_u if state.hole_u is not None else state.q @ self.bit_axial_row
-        # The end-of-step ROP that puts the bit on the hole bottom (Newmark: d = d* +
-        # (beta/gamma) dt (v - v*)); below it the bit ends the step above the bottom.
-        row = self.bit_axial_row
-        touch = d_pred @ row
-        touch = np.maximum(v_pred @ row + GAMMA / (BETA * dt) * (hole - touch), 0.0)
+        work = self._step_work(members)
+        has_hole = state.hole_u is not None
         bookkeeping = self._bookkeeping()              # restored if the step fails
-        a = state.q_acceleration.copy()
-        error = np.full(members, np.inf)
-        active = np.ones(members, dtype=bool)        # members still iterating
-        bit_ok = np.ones(members, dtype=bool)
-        final = bit = None
-        iterations = 0
-        for iterations in range(1, self.max_iterations + 1):
-            d = d_pred + BETA * dt * dt * a
-            v = v_pred + GAMMA * dt * a
-            fields = Kinematics.of(self.system, d, v, a, top_speed_rad_per_s, top_acceleration)
-            evaluation = self._forces_without_bit.evaluate(fields, self.germ)
-            self.counters.force_evaluations += 1
-            # Frozen members were evaluated at their final state: keep that evaluation.
-            final = evaluation if final is None else _merge(final, evaluation, ~active)
-            residual = (self._mass_times(a) + v @ self.damping_t + self._stiffness_times(d)
-                        - evaluation.modal - load)
-            updated, solution = self._update(a, residual, evaluation, touch)
-            if active.all():
-                increment, a, bit = a - updated, updated, solution
-            else:
-                increment = np.where(active[:, None], a - updated, 0.0)
-                a = np.where(active[:, None], updated, a)
-                bit = _merge_bit(bit, solution, active)
-            bit_ok &= ~active | solution.solved
-            speed = np.linalg.norm(v, axis=1)
-            previous_error = error
-            new_error = GAMMA * dt * np.linalg.norm(increment, axis=1) / (speed + VELOCITY_SCALE)
-            error = np.where(active, new_error, error)
-            active &= np.isfinite(error) & bit_ok       # a failing member stops alone
-            done = active & (error <= self.tolerance)
-            if iterations == 1:
-                accepted = active & self._accept_first_iterate(error, evaluation,
-                                                               solution.lifted)
-                error = np.where(accepted, self._rate / (1.0 - self._rate) * error, error)
-                done |= accepted
-            elif iterations == 2:
-                measured = active & (previous_error > 0)
-                rate = np.where(measured, error / np.where(measured, previous_error, 1.0), np.nan)
-                usable = measured & (rate < 1.0)
-                self._rate = np.where(usable, rate, self._rate)
-                self._steps_since_verified = np.where(usable, 0, self._steps_since_verified)
-            active &= ~done
-            if not active.any():
-                break
-        evaluation = self._with_bit(final, bit)
+        have_rate = self._rate is not None and self._rate.shape == (members,)
+        if not have_rate:
+            self._rate = np.full(members, np.nan)
+            self._steps_since_verified = np.zeros(members, dtype=np.int64)
+        have_active = self._active is not None and self._active[1].shape == (members,)
+        previous_contact, previous_lifted = (self._active if have_active
+                                             else (work.no_contact, work.no_lift))
+        system = self.system
+        final = _FinalEvaluation(system.n_dofs, system.size, system.n_nodes, members)
+        q = np.empty((members, system.size))
+        q_rate, q_acceleration = np.empty_like(q), np.empty_like(q)
+        hole = np.empty(members)
+        finite = np.empty(members, dtype=bool)
+        converged = np.empty(members, dtype=bool)
+        iterations, robust, count = compiled.step(
+            (np.ascontiguousarray(state.q), np.ascontiguousarray(state.q_rate),
+             np.ascontiguousarray(state.q_acceleration),
+             state.hole_u if has_hole else work.touch, has_hole),
+            (float(top_speed_rad_per_s), float(top_acceleration), load, self.max_iterations),
+            (have_rate, have_active, self._rate, self._steps_since_verified, previous_contact,
+             previous_lifted),
+            self._forces_arguments, self._operators + self._bit_constants, work.arrays,
+            final.arrays, (q, q_rate, q_acceleration, hole, finite, converged))
+        evaluation = final.evaluation()
         self._steps_since_verified += 1
-        self._active = (evaluation.contact.in_contact.copy(), evaluation.lifted.copy())
-        d = d_pred + BETA * dt * dt * a
-        v = v_pred + GAMMA * dt * a
-        hole = np.maximum(hole, d @ row)                 # the hole only deepens
-        finite = np.all(np.isfinite(d), axis=1) & np.all(np.isfinite(v), axis=1)
-        converged = finite & bit_ok & (error <= self.tolerance)
-        success = bool(converged.all())
+        self._active = (final.contact.copy(), final.bit_lifted.copy())
+        error = work.error.copy()
+        bit_ok = work.bit_ok
+        success = count == members
         time = state.time_s + dt
         message = ''
-        if not np.all(finite):
+        if success:
+            pass
+        elif not np.all(finite):
             message = f'non-finite state at t = {time:.6g} s (members {np.flatnonzero(~finite)})'
         elif not np.all(bit_ok):
             message = (f'the bit-rock equation has no solution at t = {time:.6g} s '
@@ -361,13 +371,35 @@ class NewmarkIntegrator:
         self._before_step = bookkeeping
         if not success:                                # a failed member's step leaves no trace
             self._restore(bookkeeping, ~converged)
-        self.counters.steps += 1
-        self.counters.iterations += iterations
-        self.counters.failed_steps += int(not success)
-        new_state = BatchState(time, d, v, a, top_angle, top_speed_rad_per_s, top_acceleration,
-                               hook_load_n, hole)
+        counters = self.counters
+        counters.steps += 1
+        counters.iterations += iterations
+        counters.force_evaluations += iterations
+        counters.bit_law_evaluations += (iterations + robust) if self.forces.physics.bit_rock \
+            else 0
+        counters.failed_steps += int(not success)
+        new_state = BatchState(time, q, q_rate, q_acceleration, top_angle, top_speed_rad_per_s,
+                               top_acceleration, hook_load_n, hole)
         return new_state, StepResult(success, converged, finite, iterations, error, message,
                                      evaluation)
+
+    def _step_work(self, members: int) -> compiled.StepWork:
+        """The work arrays of a step of ``members`` (made again only when m changes)."""
+        work = self._work
+        if work is None or work.members != members:
+            work = compiled.StepWork(self.system.size, members)
+            forces = self._forces_without_bit.step_workspace(members)
+            work.arrays = (work.d_pred, work.v_pred, work.a, work.d, work.v, work.residual,
+                           work.y, work.modal, work.product, work.responses, work.touch,
+                           work.hole, work.error, work.previous_error, work.active,
+                           work.bit_ok, work.scratch, work.flexibilities, work.on_wall,
+                           *forces.kinematics, forces.strain, forces.linear,
+                           forces.stress, forces.coupling, forces.force_t, forces.radial,
+                           forces.in_contact, forces.tangent)
+            work.no_contact = np.zeros((members, self.system.n_nodes), dtype=bool)
+            work.no_lift = np.zeros(members, dtype=bool)
+            self._work = work
+        return work
 
     def _bookkeeping(self):
         copy = (lambda x: None if x is None else
@@ -415,114 +447,6 @@ class NewmarkIntegrator:
             accept &= self._rate / (1.0 - self._rate) * error <= self.tolerance
         return accept
 
-    # -- the update of one iteration -----------------------------------------------------
-    def _update(self, a, residual, evaluation: ForceEvaluation, touch):
-        """New accelerations (m, n) with the bit solved exactly (module docstring); the
-        residual is without the bit's forces; touch: (m,) the ROP that reaches the hole bottom
-        at the end of the step (0 on bottom)."""
-        gdt = GAMMA * self.time_step_s
-        y, response = self._inverse_with_contact(residual, evaluation)
-        if response is None:                                  # no contact: constant S0
-            flexibility = np.broadcast_to(self.bit_flexibility, (a.shape[0], 2, 2))
-        else:
-            flexibility = np.einsum('in,mnj->mij', self.bit_rows, response)   # B^T S^-1 B
-        start = np.stack([evaluation.rop_m_per_s, evaluation.bit_speed_rad_per_s], axis=1)
-        linear = start - gdt * (y @ self.bit_rows_t)
-        solution = self._solve_bit(linear, flexibility, start, touch)
-        force = np.stack([solution.force, solution.torque], axis=1) - self.static_bit_force
-        if response is None:
-            return a - y + force @ self.bit_response.T, solution
-        return a - y + np.einsum('mnj,mj->mn', response, force), solution
-
-    def _inverse_with_contact(self, vectors, evaluation: ForceEvaluation):
-        """S^-1 r and S^-1 B per member, S = S0 + contact tangents of the touching nodes
-        (S^-1 B is None when no member touches the wall: then it is the constant S0^-1 B)."""
-        members = vectors.shape[0]
-        y = vectors @ self.effective_inverse_t
-        touching = evaluation.contact.in_contact
-        if evaluation.contact_tangent is None or not touching.any():
-            return y, None                                    # S = S0 for every member
-        contact_members = np.flatnonzero(np.any(touching, axis=1))
-        response = np.repeat(self.bit_response[None], members, axis=0)
-        dt2 = BETA * self.time_step_s ** 2
-        n_nodes = self.system.n_nodes
-        for member in contact_members:
-            nodes = np.flatnonzero(touching[member])
-            index = np.ravel(np.column_stack([2 + nodes, 2 + n_nodes + nodes]))
-            rank = index.size
-            d = np.zeros((rank, rank))
-            for k, node in enumerate(nodes):
-                d[2 * k:2 * k + 2, 2 * k:2 * k + 2] = dt2 * evaluation.contact_tangent[member, node]
-            gram = self.local_gram[np.ix_(index, index)]
-            correction = np.linalg.solve(np.eye(rank) + d @ gram, d)     # (I + D G)^-1 D
-            directions = self.local_response[:, index]
-            y[member] -= directions @ (correction @ (self.local_directions[:, index].T
-                                                     @ y[member]))
-            response[member] -= directions @ (correction @ self.local_gram[np.ix_(index, [0, 1])])
-        return y, response
-
-    def _solve_bit(self, linear, flexibility, start, touch) -> _BitSolution:
-        """Solve x = linear + gamma dt H (F(x) - F_c) per member.
-
-        Fast path: one Newton step on Eq. 25 from the iterate's velocities ``start``, kept
-        where it stays on the law's cutting branch (bit on bottom and cutting, omega > 0,
-        same signs, ROP within a factor of two, the force below the torque-fade force):
-        there the law is smooth and the outer iteration checks the linearisation. Everyone
-        else gets the bracketed solve of :mod:`drill_twin.dynamics.bit_equation`, which
-        cannot fail (lift-off, landing, rest on bottom, stopped or backward rotation).
-        """
-        gdt = GAMMA * self.time_step_s
-        law, germ = self.forces.law, self.germ
-        members = linear.shape[0]
-        if not self.forces.physics.bit_rock:
-            return _BitSolution(linear[:, 0], linear[:, 1],
-                                np.full(members, self.static_bit_force[0]), np.zeros(members),
-                                np.zeros(members, bool), np.zeros((members, 2, 2)),
-                                np.ones(members, bool))
-        force, torque, lifted, jacobian = law.forces_and_jacobian(start[:, 0], start[:, 1], germ)
-        self.counters.bit_law_evaluations += 1
-        applied = np.stack([force, torque], axis=1) - self.static_bit_force
-        g = start - linear - gdt * np.einsum('mij,mj->mi', flexibility, applied)
-        step = _solve2(np.eye(2) - gdt * flexibility @ jacobian, g)
-        x = start - step
-        carried = np.stack([force, torque], axis=1) - np.einsum('mij,mj->mi', jacobian, step)
-        safe = (np.all(np.sign(x) == np.sign(start), axis=1)
-                & (np.abs(step[:, 0]) <= 0.5 * np.abs(start[:, 0]))
-                & ~lifted & (carried[:, 0] < 0) & (x[:, 0] > touch) & (x[:, 1] > 0))
-        fast = x[:, 1] >= law.fade_speed_rad_per_s        # where the torque may fade
-        if fast.any():
-            with np.errstate(invalid='ignore', divide='ignore', over='ignore'):
-                mean_force = law.mean(x[:, 0], x[:, 1])[0]
-                safe &= ~fast | (mean_force < law.fade_force(x[:, 1]))
-        solution = _BitSolution(x[:, 0], x[:, 1], carried[:, 0], carried[:, 1],
-                                np.zeros(members, bool), jacobian, np.ones(members, bool))
-        if safe.all():
-            return solution
-        rest = np.flatnonzero(~safe)
-        c = gdt * np.stack([flexibility[rest, 0, 0], flexibility[rest, 1, 1]], axis=1)
-        b = linear[rest] - c * self.static_bit_force
-        # A bit that cannot reach the rock (or outruns the law's cut at zero force) at the
-        # speed it has without a rock torque is free: F = 0, omega = b2, no search.
-        free = ~(b[:, 0] > np.maximum(touch[rest], law.cutting_rate(0.0, b[:, 1])))
-        rop, omega = b[:, 0].copy(), b[:, 1].copy()
-        f1, f2 = np.zeros(rest.size), np.zeros(rest.size)
-        lf = np.ones(rest.size, dtype=bool)
-        search = np.flatnonzero(~free)
-        if search.size:
-            sub_germ = None if germ is None else germ[rest[search]]
-            found = solve_bit_equation(law, b[search], c[search], touch[rest[search]], sub_germ,
-                                       omega_guess=start[rest[search], 1])
-            for array, value in zip((rop, omega, f1, f2, lf), found):
-                array[search] = value
-        self.counters.bit_law_evaluations += 1
-        # The Jacobian of a guarded member is the law's at the iterate (it informs nothing).
-        jacobian[rest] = np.where(lf[:, None, None], 0.0, jacobian[rest])
-        robust = _BitSolution(rop, omega, f1, f2, lf, jacobian[rest],
-                              np.isfinite(rop) & np.isfinite(omega))
-        for name in _BIT_FIELDS:
-            getattr(solution, name)[rest] = getattr(robust, name)
-        return solution
-
     def _with_bit(self, evaluation: ForceEvaluation, bit: _BitSolution) -> ForceEvaluation:
         """The evaluation with the bit's forces of the final state (exact)."""
         full = evaluation.full.copy()
@@ -540,50 +464,53 @@ class NewmarkIntegrator:
                        bit_jacobian=bit.jacobian)
 
 
-def _solve2(matrix, vector):
-    """Solve (m, 2, 2) x = (m, 2) explicitly."""
-    a, b = matrix[:, 0, 0], matrix[:, 0, 1]
-    c, d = matrix[:, 1, 0], matrix[:, 1, 1]
-    determinant = a * d - b * c
-    return np.stack([(d * vector[:, 0] - b * vector[:, 1]) / determinant,
-                     (a * vector[:, 1] - c * vector[:, 0]) / determinant], axis=1)
+def _diagonal_blocks(damping, inverse, groups):
+    """([C_r] blocks (4,), row groups (4, 2), S0^-1 blocks (4,)) as the step kernel takes
+    them: the diagonal blocks on the coordinate groups of Phi's blocks when
+    [C_r] and S0^-1 have nothing outside them (the fields do not couple linearly), else the
+    whole matrices as one group."""
+    outside = np.ones(damping.shape, dtype=bool)
+    for start, stop in groups:
+        outside[start:stop, start:stop] = False
+    if np.any(damping[outside] != 0) or np.any(inverse[outside] != 0):
+        n = damping.shape[0]
+        groups = np.array([[0, n]] + [[n, n]] * 3, dtype=np.int64)
+    else:
+        groups = np.ascontiguousarray(groups, dtype=np.int64)
+    empty = np.empty((0, 0))
+
+    def blocks(matrix):
+        return tuple(np.ascontiguousarray(matrix[start:stop, start:stop]) if stop > start
+                     else empty for start, stop in groups)
+
+    return blocks(damping), groups, blocks(inverse)
 
 
-def _pick(members, kept, new):
-    mask = members.reshape((-1,) + (1,) * (np.ndim(kept) - 1))
-    return np.where(mask, new, kept)
+class _FinalEvaluation:
+    """The arrays of a step's final evaluation (new for every step: the caller keeps them),
+    in the order :func:`newmark_kernel.update` takes them: full (n_dofs, m), modal (n, m),
+    radial, contact (m, n_nodes), tangent (m, n_nodes, 2, 2); the bit's rop, omega, force,
+    torque, lifted (m,), jacobian (m, 2, 2), solved (m,)."""
 
+    def __init__(self, n_dofs: int, n: int, nodes: int, members: int):
+        self.full = np.empty((n_dofs, members))
+        self.modal = np.empty((n, members))
+        self.radial = np.empty((members, nodes))
+        self.contact = np.empty((members, nodes), dtype=bool)
+        self.tangent = np.empty((members, nodes, 2, 2))
+        self.bit_rop, self.bit_omega = np.empty(members), np.empty(members)
+        self.bit_force, self.bit_torque = np.empty(members), np.empty(members)
+        self.bit_lifted = np.empty(members, dtype=bool)
+        self.bit_jacobian = np.empty((members, 2, 2))
+        self.bit_solved = np.empty(members, dtype=bool)
+        self.arrays = (self.full, self.modal, self.radial, self.contact, self.tangent,
+                       self.bit_rop, self.bit_omega, self.bit_force, self.bit_torque,
+                       self.bit_lifted, self.bit_jacobian, self.bit_solved)
 
-def _merge_bit(kept: _BitSolution, new: _BitSolution, members) -> _BitSolution:
-    """``new`` for ``members``, ``kept`` for the others."""
-    return _BitSolution(*(_pick(members, getattr(kept, f), getattr(new, f))
-                          for f in _BIT_FIELDS))
-
-
-def _merge(kept: ForceEvaluation, new: ForceEvaluation, members: np.ndarray) -> ForceEvaluation:
-    """``new`` for ``members`` (their final state), ``kept`` for the others."""
-    if not np.any(members):
-        return kept
-    if np.all(members):
-        return new
-    contact = ContactForces(_pick(members, kept.contact.radial_force_n,
-                                  new.contact.radial_force_n),
-                            _pick(members, kept.contact.in_contact, new.contact.in_contact))
-    tangent = None
-    if kept.contact_tangent is not None or new.contact_tangent is not None:
-        tangent = _pick(members, _tangent_or_zero(kept), _tangent_or_zero(new))
-    return ForceEvaluation(
-        full=_pick(members, kept.full, new.full), modal=_pick(members, kept.modal, new.modal),
-        weight_on_bit_n=_pick(members, kept.weight_on_bit_n, new.weight_on_bit_n),
-        torque_on_bit_nm=_pick(members, kept.torque_on_bit_nm, new.torque_on_bit_nm),
-        rop_m_per_s=_pick(members, kept.rop_m_per_s, new.rop_m_per_s),
-        bit_speed_rad_per_s=_pick(members, kept.bit_speed_rad_per_s, new.bit_speed_rad_per_s),
-        lifted=_pick(members, kept.lifted, new.lifted),
-        bit_jacobian=_pick(members, kept.bit_jacobian, new.bit_jacobian),
-        contact=contact, contact_tangent=tangent)
-
-
-def _tangent_or_zero(evaluation: ForceEvaluation) -> np.ndarray:
-    if evaluation.contact_tangent is not None:
-        return evaluation.contact_tangent
-    return np.zeros(evaluation.contact.in_contact.shape + (2, 2))
+    def evaluation(self) -> ForceEvaluation:
+        return ForceEvaluation(
+            full=self.full.T, modal=self.modal.T, weight_on_bit_n=self.bit_force,
+            torque_on_bit_nm=self.bit_torque, rop_m_per_s=self.bit_rop,
+            bit_speed_rad_per_s=self.bit_omega, lifted=self.bit_lifted,
+            bit_jacobian=self.bit_jacobian, contact=ContactForces(self.radial, self.contact),
+            contact_tangent=self.tangent if self.contact.any() else None)

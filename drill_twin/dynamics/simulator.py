@@ -165,6 +165,7 @@ class Simulator:
         self.substeps = 0
         """Sub-steps attempted in those retries (successful or not)."""
         self._on_bottom = self.on_bottom()
+        self._observer = None
         # The rig's drives (issue 13, docs/DRIVES.md): with top_drive.mode dynamic or a
         # drawworks mode other than hook_load, they take over self.top_drive; else no change.
         from drill_twin.dynamics.rig import attach_drives
@@ -228,11 +229,12 @@ class Simulator:
         every member is then left as it was)."""
         start_speed = self.state.top_speed_rad_per_s
         speed = self.top_drive.advance(self.top_speed_command_rad_per_s, self.dt)
-        # A diverging member's NaN and inf are caught below (SimulationDiverged), not warned of.
-        with np.errstate(invalid='ignore', over='ignore', divide='ignore'):
-            new_state, result = self.integrator.step(self.state, speed, self.hook_load_command_n)
-            retries = np.zeros(self.members, dtype=int)
-            if not result.success:
+        new_state, result = self.integrator.step(self.state, speed, self.hook_load_command_n)
+        retries = np.zeros(self.members, dtype=int)
+        if not result.success:
+            # A diverging member's NaN and inf are caught below (SimulationDiverged), not
+            # warned of.
+            with np.errstate(invalid='ignore', over='ignore', divide='ignore'):
                 new_state, result, retries = self._retry(new_state, result, start_speed, speed)
         if not result.success:
             self.integrator.discard_last_step()
@@ -241,13 +243,15 @@ class Simulator:
                                      np.flatnonzero(~result.converged))
         previous = self.last
         self.state, self.last = new_state, result.forces
-        self.impact_count += np.sum(self.last.contact.in_contact & ~previous.contact.in_contact,
-                                    axis=1)
+        if self.last.contact_tangent is not None or previous.contact_tangent is not None:
+            self.impact_count += np.sum(self.last.contact.in_contact
+                                        & ~previous.contact.in_contact, axis=1)
         self.lift_off_count += self.last.lifted & ~previous.lifted
         on_bottom = self.on_bottom()
         self.landing_count += on_bottom & ~self._on_bottom
         self._on_bottom = on_bottom
-        return replace(result, retries=retries)
+        return StepResult(result.success, result.converged, result.finite, result.iterations,
+                          result.error, result.message, result.forces, retries)
 
     def _retry(self, new_state: BatchState, result: StepResult, start_speed: float,
                speed: float):
@@ -339,8 +343,7 @@ class Simulator:
         return self._bit_u() >= self.hole_u() - ON_BOTTOM_TOLERANCE_M
 
     def _bit_u(self) -> np.ndarray:
-        axial = self.system.blocks['axial']
-        return self.state.q[:, axial.columns] @ axial.shapes[self.system.bit_node]
+        return self.state.q @ self.integrator.bit_axial_row
 
     @property
     def time_s(self) -> float:
@@ -352,38 +355,35 @@ class Simulator:
         ``detailed``: the stations, the top torque and the hook motion are computed for the
         first ``detailed`` members only (all by default); the bit quantities always for all.
         """
-        system, state, forces = self.system, self.state, self.last
-        top = state.top_speed_rad_per_s
-        keep = slice(None) if detailed is None else slice(0, detailed)
-        u = system.physical(state.q[keep])
-        rate = system.physical(state.q_rate[keep])
-        acceleration = system.physical(state.q_acceleration[keep])
-        theta_x = system.field(1)
-        rate[:, theta_x] += top
-        acceleration[:, theta_x] += state.top_acceleration_rad_per_s2
-        bit = system.bit_node
-        rows = system.driven_rows
+        state, forces = self.state, self.last
+        observer = self._observer
+        if observer is None:
+            observer = self._observer = _Observer(self.system)
+        top, top_acceleration = state.top_speed_rad_per_s, state.top_acceleration_rad_per_s2
+        keep = self.members if detailed is None else min(int(detailed), self.members)
+        # The reduced rows of every observed quantity, applied once per state vector.
+        q = observer.rows(state.q)
+        rate = observer.rows(state.q_rate[:keep])
+        rate += top * observer.driven
+        acceleration = observer.rows(state.q_acceleration[:keep])
+        acceleration += top_acceleration * observer.driven
+        stations = len(self.system.stations)
+        fields, spins = observer.fields, observer.spins
         # Torque balance of the whole string about x (the rigid rotation costs no strain).
-        top_torque = (acceleration @ rows['mass'] + rate @ rows['damping']
-                      - np.sum(forces.full[keep, theta_x], axis=1))
-        axial, torsion = system.blocks['axial'], system.blocks['torsional']
-        bit_u = state.q[:, axial.columns] @ axial.shapes[bit]              # every member
-        bit_angle = state.q[:, torsion.columns] @ torsion.shapes[bit]
+        top_torque = (acceleration[:, observer.mass] + rate[:, observer.damping]
+                      - np.sum(forces.full[:keep, self.system.field(1)], axis=1))
+        bit_u = q[:, observer.bit_u]
         velocity = forces.rop_m_per_s
-        on_bottom = self.on_bottom()
+        on_bottom = bit_u >= self.hole_u() - ON_BOTTOM_TOLERANCE_M
         rop = np.where(on_bottom, np.maximum(velocity, 0.0), 0.0)    # the hole deepens
         omega = forces.bit_speed_rad_per_s
-        length = system.model.mesh.total_length_m
+        length = self.system.model.mesh.total_length_m
         e = self.law.e
-        fields = np.stack([st.rows[[0, 1, 2]] for st in system.stations]) if system.stations \
-            else np.zeros((0, 3, system.n_dofs))
-        spin_rows = np.stack([st.rows[[3, 4, 5]] for st in system.stations]) if system.stations \
-            else np.zeros((0, 3, system.n_dofs))
         return Observation(
             time_s=state.time_s,
             depth_m=length + bit_u,
             rop_m_per_s=rop,
-            angle_rad=state.top_angle_rad + bit_angle,
+            angle_rad=state.top_angle_rad + q[:, observer.bit_angle],
             speed_rad_per_s=omega,
             weight_on_bit_n=forces.weight_on_bit_n,
             torque_on_bit_nm=forces.torque_on_bit_nm,
@@ -393,12 +393,12 @@ class Simulator:
             top_speed_rad_per_s=top,
             top_angle_rad=state.top_angle_rad,
             hook_load_n=state.hook_load_n,
-            hook_position_m=u[:, 0],
-            hook_velocity_m_per_s=rate[:, 0],
-            station_displacement_m=np.einsum('sfd,md->msf', fields, u),
-            station_velocity_m_per_s=np.einsum('sfd,md->msf', fields, rate),
-            station_acceleration_m_per_s2=np.einsum('sfd,md->msf', fields, acceleration),
-            station_spin_rate_rad_per_s=np.einsum('sfd,md->msf', spin_rows, rate),
+            hook_position_m=q[:keep, observer.hook],
+            hook_velocity_m_per_s=rate[:, observer.hook],
+            station_displacement_m=q[:keep, fields].reshape(keep, stations, 3),
+            station_velocity_m_per_s=rate[:, fields].reshape(keep, stations, 3),
+            station_acceleration_m_per_s2=acceleration[:, fields].reshape(keep, stations, 3),
+            station_spin_rate_rad_per_s=rate[:, spins].reshape(keep, stations, 3),
             contact_force_n=forces.contact.radial_force_n,
             in_contact=forces.contact.in_contact,
             impacts_so_far=self.impact_count.copy(),
@@ -462,6 +462,45 @@ class Simulator:
 
     def _evaluate(self, state: BatchState) -> ForceEvaluation:
         return self.integrator.evaluate(state)
+
+
+class _Observer:
+    """What :meth:`Simulator.observe` measures, as rows on the reduced coordinates: a row r
+    of the field-wise DOFs reads r . (Phi q) = (Phi^T r) . q, plus r . psi theta' for the
+    rates and accelerations (the driven rotation moves the theta_x DOFs).
+
+    Columns of ``rows(q)``: hook (the top's axial DOF), the stations' (u, v, w) (``fields``,
+    station-major), their (theta_x, theta_y, theta_z) (``spins``), the torque balance's mass
+    and damping rows, the bit's axial displacement and rotation.
+    """
+
+    def __init__(self, system: ReducedSystem):
+        n_dofs = system.n_dofs
+        rows = [np.eye(1, n_dofs, 0)[0]]                      # the hook: u at the top
+        stations = system.stations
+        rows += [station.rows[k] for station in stations for k in (0, 1, 2)]
+        rows += [station.rows[k] for station in stations for k in (3, 4, 5)]
+        rows += [system.driven_rows['mass'], system.driven_rows['damping']]
+        physical = np.asarray(rows)                           # (k, n_dofs)
+        bit = system.bit_node
+        axial, torsion = system.blocks['axial'], system.blocks['torsional']
+        reduced = system.physical(np.eye(system.size)) @ physical.T      # (n, k)
+        bit_rows = np.zeros((system.size, 2))
+        bit_rows[axial.columns, 0] = axial.shapes[bit]
+        bit_rows[torsion.columns, 1] = torsion.shapes[bit]
+        self.operator = np.ascontiguousarray(np.hstack([reduced, bit_rows]))
+        count = 3 * len(stations)
+        self.hook = 0
+        self.fields = slice(1, 1 + count)
+        self.spins = slice(1 + count, 1 + 2 * count)
+        self.mass, self.damping = 1 + 2 * count, 2 + 2 * count
+        self.bit_u, self.bit_angle = 3 + 2 * count, 4 + 2 * count
+        self.driven = np.zeros(self.operator.shape[1])
+        self.driven[:physical.shape[0]] = physical[:, system.field(1)].sum(axis=1)
+
+    def rows(self, q: np.ndarray) -> np.ndarray:
+        """The observed rows of reduced vectors q (m, n): (m, k)."""
+        return q @ self.operator
 
 
 def _with_member(evaluation: ForceEvaluation, member: int,

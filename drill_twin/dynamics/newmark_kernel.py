@@ -1,0 +1,510 @@
+"""The compiled parts of a Newmark step (:mod:`drill_twin.dynamics.newmark` holds the method).
+
+A step is ``begin`` (the predictor), then per iteration ``fields`` (the iterate's
+displacements, rates and the kinematics the forces read, members last), the forces of the
+string (:meth:`NonlinearForces.accumulate`, the one place they are summed), and ``update``
+(Phi^T f, the residual, S^-1 by the Woodbury identity for members touching the wall, the
+bit's 2x2 equation per member, the new accelerations and every per-member decision), and at
+the end ``finish`` (the bit's forces in the final evaluation, the new state, the checks).
+
+Arrays are members last, (rows, m), so that the dense products are BLAS (np.dot) over the
+whole batch and the per-member work reads columns. The work arrays belong to a
+:class:`StepWork` made once per batch size; what a step returns is written into new arrays
+given by the caller.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from drill_twin.dynamics.bit_equation import solve_one
+from drill_twin.dynamics.bit_rock import cutting_rate, law_point, maximum, minimum
+from drill_twin.dynamics.compiled import inline, kernel
+from drill_twin.dynamics.forces import string_forces
+
+BETA = 0.25
+GAMMA = 0.5
+VELOCITY_SCALE = 1e-9
+"""Added to the velocity norm in the convergence test (modal units, sqrt(kg) m/s)."""
+VERIFY_EVERY = 25
+"""A step runs at least two iterations this often, to measure the contraction rate."""
+TORQUE_FADE_FORCE_N = 1e3
+
+
+class StepWork:
+    """Work arrays of a step for m members (n reduced coordinates), allocated once.
+
+    d_pred, v_pred, a, d, v, residual, y: (n, m); modal: (n, m) (Phi^T f of the iterate);
+    touch, hole: (m,); per-member state of the iteration: error, previous_error (m,),
+    active, bit_ok (m,) bools; the bit of the iteration (rop, omega, force, torque, lifted,
+    jacobian (m, 2, 2), solved) and the product buffer (n, m); responses (m, n, 2): S^-1 B of
+    the members on the wall (on_wall (m,)), flexibilities (m, 2, 2): B^T S^-1 B; scratch
+    (6, m).
+    """
+
+    def __init__(self, n: int, members: int):
+        self.members = members
+        shape = (n, members)
+        self.d_pred, self.v_pred, self.a = np.empty(shape), np.empty(shape), np.empty(shape)
+        self.d, self.v = np.empty(shape), np.empty(shape)
+        self.residual, self.y = np.empty(shape), np.empty(shape)
+        self.modal, self.product = np.empty(shape), np.empty(shape)
+        self.touch, self.hole = np.empty(members), np.empty(members)
+        self.error, self.previous_error = np.empty(members), np.empty(members)
+        self.active = np.empty(members, dtype=np.bool_)
+        self.bit_ok = np.empty(members, dtype=np.bool_)
+        self.responses = np.empty((members, n, 2))
+        self.scratch = np.empty((6, members))
+        self.flexibilities = np.empty((members, 2, 2))
+        self.on_wall = np.empty(members, dtype=np.bool_)
+
+
+@kernel
+def begin(q, q_rate, q_acceleration, hole_in, has_hole, dt, bit_axial_row, d_pred, v_pred, a,
+          touch, hole, error, active, bit_ok):
+    """The predictor (state arrays members first (m, n), work arrays members last): d*, v*,
+    a = the last acceleration, the hole and ``touch``, the end-of-step ROP that puts the bit
+    on the hole bottom (Newmark: d = d* + (beta/gamma) dt (v - v*); 0 on bottom)."""
+    members, n = q.shape
+    cd = (0.5 - BETA) * dt * dt
+    cv = (1.0 - GAMMA) * dt
+    for i in range(members):
+        reach = 0.0
+        rate = 0.0
+        bit_u = 0.0
+        for j in range(n):
+            dp = q[i, j] + dt * q_rate[i, j] + cd * q_acceleration[i, j]
+            vp = q_rate[i, j] + cv * q_acceleration[i, j]
+            d_pred[j, i] = dp
+            v_pred[j, i] = vp
+            a[j, i] = q_acceleration[i, j]
+            reach += dp * bit_axial_row[j]
+            rate += vp * bit_axial_row[j]
+            bit_u += q[i, j] * bit_axial_row[j]
+        hole[i] = hole_in[i] if has_hole else bit_u
+        touch[i] = maximum(rate + GAMMA / (BETA * dt) * (hole[i] - reach), 0.0)
+        error[i] = np.inf
+        active[i] = True
+        bit_ok[i] = True
+
+
+@kernel
+def fields(a, d_pred, v_pred, cd, cv, top_speed, top_acceleration, shapes_axial,
+           shapes_torsion, shapes_y, shapes_z, ranges, d, v, displacement_t, theta_x_rate_t,
+           theta_x_acceleration_t, bending_y_rate_t, bending_y_acceleration_t,
+           bending_z_rate_t):
+    """d = d* + beta dt^2 a, v = v* + gamma dt a (n, m), and the kinematics of the forces
+    (forces.Kinematics, members last). ranges (4, 4): rows and columns (start, stop, start,
+    stop) of the axial, torsional, bending-y and bending-z blocks of Phi."""
+    n, members = a.shape
+    for j in range(n):
+        for i in range(members):
+            d[j, i] = d_pred[j, i] + cd * a[j, i]
+            v[j, i] = v_pred[j, i] + cv * a[j, i]
+    blocks = (shapes_axial, shapes_torsion, shapes_y, shapes_z)
+    for b in range(4):
+        np.dot(blocks[b], d[ranges[b, 2]:ranges[b, 3]],
+               displacement_t[ranges[b, 0]:ranges[b, 1]])
+    t0, t1 = ranges[1, 2], ranges[1, 3]
+    np.dot(shapes_torsion, v[t0:t1], theta_x_rate_t)
+    np.dot(shapes_torsion, a[t0:t1], theta_x_acceleration_t)
+    theta_x_rate_t += top_speed
+    theta_x_acceleration_t += top_acceleration
+    np.dot(shapes_y, v[ranges[2, 2]:ranges[2, 3]], bending_y_rate_t)
+    np.dot(shapes_y, a[ranges[2, 2]:ranges[2, 3]], bending_y_acceleration_t)
+    np.dot(shapes_z, v[ranges[3, 2]:ranges[3, 3]], bending_z_rate_t)
+
+
+@kernel
+def update(iteration, force_t, radial, in_contact, tangent, touching, theta_x_rate_t,
+           bit_node, n_nodes, shapes_t_axial, shapes_t_torsion, shapes_t_y, shapes_t_z, ranges,
+           mass, mass_is_identity, damping, stiffness, stiffness_diagonal, effective_inverse,
+           groups, local_directions, local_response, local_gram, bit_rows, bit_response,
+           bit_flexibility, dt, dt2, tolerance, load, static_force, bit_rock, law, fade_speed,
+           germ, random, have_rate, have_active, rate, since, previous_contact,
+           previous_lifted, work_d, work_v, a, modal, residual, y, product, responses, touch,
+           error, previous_error, active, bit_ok, scratch, flexibilities, on_wall, final_full,
+           final_modal, final_radial, final_contact, final_tangent, bit_rop, bit_omega,
+           bit_force, bit_torque, bit_lifted, bit_jacobian, bit_solved):
+    """One iteration after the forces of the iterate (force_t, members last, without the
+    bit): the Newmark update of the module docstring of :mod:`newmark`, per member.
+
+    Updates a, error, active, bit_ok, the bit of the active members and the bookkeeping
+    (rate, since) in place, and keeps the evaluation of the frozen members (at their final
+    state) in final_*. Loops over the n coordinates run with the members innermost (the
+    arrays' layout); the per-member work (the bit, the decisions) runs member by member.
+    scratch (6, m), flexibilities (m, 2, 2), responses (m, n, 2) (S^-1 B of members on the
+    wall), on_wall (m,): work arrays. Returns (members still active, 1 if any member needed
+    the bracketed bit solve).
+    """
+    n, members = a.shape
+    shapes_t = (shapes_t_axial, shapes_t_torsion, shapes_t_y, shapes_t_z)
+    for b in range(4):                                        # Phi^T f, block by block
+        np.dot(shapes_t[b], force_t[ranges[b, 0]:ranges[b, 1]],
+               modal[ranges[b, 2]:ranges[b, 3]])
+    # Frozen members were evaluated at their final state: keep that evaluation.
+    if iteration == 1:
+        final_full[:, :] = force_t
+        final_modal[:, :] = modal
+        final_radial[:, :] = radial
+        final_contact[:, :] = in_contact
+        if touching:
+            final_tangent[:, :, :, :] = tangent
+        else:
+            final_tangent[:, :, :, :] = 0.0
+    else:
+        for i in range(members):
+            if not active[i]:
+                _keep_member(i, force_t, modal, radial, in_contact, tangent, touching,
+                             final_full, final_modal, final_radial, final_contact,
+                             final_tangent)
+    # R = M a + C v + K d - Phi^T f - g, then y = S0^-1 R.
+    if mass_is_identity:
+        residual[:, :] = a
+    else:
+        np.dot(mass, a, residual)
+    _block_product(damping, groups, work_v, product)
+    residual += product
+    if stiffness_diagonal.shape[0] > 0:
+        for j in range(n):
+            k = stiffness_diagonal[j]
+            for i in range(members):
+                residual[j, i] += work_d[j, i] * k
+    else:
+        np.dot(stiffness, work_d, product)
+        residual += product
+    for j in range(n):
+        g = load[j]
+        for i in range(members):
+            residual[j, i] = residual[j, i] - modal[j, i] - g
+    _block_product(effective_inverse, groups, residual, y)
+    # S^-1 with the contact tangents (Woodbury), members on the wall only.
+    for i in range(members):
+        on_wall[i] = touching > 0 and _touches(in_contact, i, n_nodes)
+        if on_wall[i]:
+            responses[i, :, :] = bit_response
+            flexibilities[i, :, :] = _woodbury(i, in_contact, tangent, n_nodes, dt2,
+                                               local_directions, local_response, local_gram,
+                                               bit_rows, y, responses[i])
+        else:
+            flexibilities[i, :, :] = bit_flexibility
+    # The iterate's bit velocities (start), B^T y, |v|.
+    rop, by0, by1 = scratch[0], scratch[1], scratch[2]
+    speed, p0, p1 = scratch[3], scratch[4], scratch[5]
+    rop[:] = 0.0
+    by0[:] = 0.0
+    by1[:] = 0.0
+    speed[:] = 0.0
+    for j in range(ranges[0, 2], ranges[0, 3]):
+        row = bit_rows[0, j]
+        for i in range(members):
+            rop[i] += row * work_v[j, i]
+    for j in range(n):
+        row0, row1 = bit_rows[0, j], bit_rows[1, j]
+        for i in range(members):
+            by0[i] += y[j, i] * row0
+            by1[i] += y[j, i] * row1
+            speed[i] += work_v[j, i] * work_v[j, i]
+    gdt = GAMMA * dt
+    robust_used = 0
+    for i in range(members):
+        omega = theta_x_rate_t[bit_node, i]
+        linear0, linear1 = rop[i] - gdt * by0[i], omega - gdt * by1[i]
+        g = min(i, germ.shape[0] - 1)
+        if bit_rock:
+            x0, x1, f0, f1, lifted, j00, j01, j10, j11, solved, robust = _solve_bit(
+                linear0, linear1, flexibilities[i], rop[i], omega, touch[i], gdt,
+                static_force, germ[g, 0, 0], germ[g, 0, 1], germ[g, 1, 1], random, law,
+                fade_speed)
+            robust_used |= robust
+        else:
+            x0, x1, f0, f1 = linear0, linear1, static_force, 0.0
+            lifted, solved = False, True
+            j00 = j01 = j10 = j11 = 0.0
+        p0[i], p1[i] = f0 - static_force, f1 - 0.0
+        if active[i]:
+            bit_rop[i], bit_omega[i], bit_force[i], bit_torque[i] = x0, x1, f0, f1
+            bit_lifted[i], bit_solved[i] = lifted, solved
+            bit_jacobian[i, 0, 0], bit_jacobian[i, 0, 1] = j00, j01
+            bit_jacobian[i, 1, 0], bit_jacobian[i, 1, 1] = j10, j11
+    # a = a - y + S^-1 B (F - F_c) for the active members, and |increment|^2.
+    norm = by0                                           # (B^T y is used up)
+    norm[:] = 0.0
+    for j in range(n):
+        r0, r1 = bit_response[j, 0], bit_response[j, 1]
+        for i in range(members):
+            if active[i]:
+                if on_wall[i]:
+                    updated = a[j, i] - y[j, i] + (p0[i] * responses[i, j, 0]
+                                                   + p1[i] * responses[i, j, 1])
+                else:
+                    updated = a[j, i] - y[j, i] + (p0[i] * r0 + p1[i] * r1)
+                increment = a[j, i] - updated
+                norm[i] += increment * increment
+                a[j, i] = updated
+    still = 0
+    for i in range(members):
+        was_active = active[i]
+        bit_ok[i] = bit_ok[i] and (not was_active or bit_solved[i])
+        new_error = gdt * np.sqrt(norm[i]) / (np.sqrt(speed[i]) + VELOCITY_SCALE)
+        previous_error[i] = error[i]
+        if was_active:
+            error[i] = new_error
+        now = was_active and np.isfinite(error[i]) and bit_ok[i]
+        done = now and error[i] <= tolerance
+        if iteration == 1 and now and have_rate:
+            accept = np.isfinite(rate[i]) and since[i] < VERIFY_EVERY
+            if accept and have_active:
+                accept = previous_lifted[i] == bit_lifted[i]
+                for node in range(n_nodes):
+                    accept = accept and previous_contact[i, node] == in_contact[i, node]
+            if accept and rate[i] / (1.0 - rate[i]) * error[i] <= tolerance:
+                error[i] = rate[i] / (1.0 - rate[i]) * error[i]
+                done = True
+        elif iteration == 2 and now and previous_error[i] > 0:
+            measured = error[i] / previous_error[i]
+            if measured < 1.0:
+                rate[i] = measured
+                since[i] = 0
+        active[i] = now and not done
+        still += active[i]
+    return still, robust_used
+
+
+@inline
+def _block_product(blocks, groups, x, out):
+    """out = A x for a block-diagonal A given by its diagonal blocks (4,) on the row groups
+    (4, 2) (start, stop) (an empty group is skipped)."""
+    for b in range(4):
+        start, stop = groups[b, 0], groups[b, 1]
+        if stop > start:
+            np.dot(blocks[b], x[start:stop], out[start:stop])
+
+
+@inline
+def _keep_member(i, force_t, modal, radial, in_contact, tangent, touching, final_full,
+                 final_modal, final_radial, final_contact, final_tangent):
+    """Copy member i's evaluation into the final one."""
+    for j in range(force_t.shape[0]):
+        final_full[j, i] = force_t[j, i]
+    for j in range(modal.shape[0]):
+        final_modal[j, i] = modal[j, i]
+    for node in range(radial.shape[1]):
+        final_radial[i, node] = radial[i, node]
+        final_contact[i, node] = in_contact[i, node]
+        for r in range(2):
+            for c in range(2):
+                final_tangent[i, node, r, c] = tangent[i, node, r, c] if touching else 0.0
+
+
+@inline
+def _touches(in_contact, i, n_nodes):
+    for node in range(n_nodes):
+        if in_contact[i, node]:
+            return True
+    return False
+
+
+@kernel
+def _woodbury(i, in_contact, tangent, n_nodes, dt2, local_directions, local_response,
+              local_gram, bit_rows, y, response):
+    """S^-1 with the contact tangents of member i's touching nodes (Woodbury): corrects
+    y[:, i] and response (S^-1 B, (n, 2)) in place; returns B^T S^-1 B (2, 2)."""
+    count = 0
+    for node in range(n_nodes):
+        if in_contact[i, node]:
+            count += 1
+    rank = 2 * count
+    index = np.empty(rank, dtype=np.int64)
+    d = np.zeros((rank, rank))
+    k = 0
+    for node in range(n_nodes):
+        if in_contact[i, node]:
+            index[2 * k], index[2 * k + 1] = 2 + node, 2 + n_nodes + node
+            for r in range(2):
+                for c in range(2):
+                    d[2 * k + r, 2 * k + c] = dt2 * tangent[i, node, r, c]
+            k += 1
+    gram = np.empty((rank, rank))
+    for r in range(rank):
+        for c in range(rank):
+            gram[r, c] = local_gram[index[r], index[c]]
+    system = np.eye(rank) + d @ gram
+    correction = np.linalg.solve(system, d)                  # (I + D G)^-1 D
+    n = y.shape[0]
+    directions = np.empty((n, rank))
+    responses = np.empty((n, rank))
+    for j in range(n):
+        for r in range(rank):
+            directions[j, r] = local_directions[j, index[r]]
+            responses[j, r] = local_response[j, index[r]]
+    projected = directions.T @ np.ascontiguousarray(y[:, i])
+    change = responses @ (correction @ projected)
+    for j in range(n):
+        y[j, i] -= change[j]
+    bit_gram = np.empty((rank, 2))
+    for r in range(rank):
+        bit_gram[r, 0] = local_gram[index[r], 0]
+        bit_gram[r, 1] = local_gram[index[r], 1]
+    response -= responses @ (correction @ bit_gram)
+    flexibility = np.empty((2, 2))
+    for r in range(2):
+        for c in range(2):
+            total = 0.0
+            for j in range(n):
+                total += bit_rows[r, j] * response[j, c]
+            flexibility[r, c] = total
+    return flexibility
+
+
+@inline
+def _solve_bit(linear0, linear1, h, start0, start1, touch, gdt, static_force, g11, g12, g22,
+               random, law, fade_speed):
+    """x = linear + gamma dt H (F(x) - F_c) for one member (NewmarkIntegrator._solve_bit):
+    one Newton step from the iterate's velocities kept where it stays on the law's cutting
+    branch, else the bracketed solve of :mod:`bit_equation`. Returns (x0, x1, F0, F1,
+    lifted, J00, J01, J10, J11, solved, robust)."""
+    f, t, j00, j01, j10, j11 = law_point(start0, start1, g11, g12, g22, random, law)
+    lifted = f >= 0.0
+    if lifted:
+        f = t = j00 = j01 = j10 = j11 = 0.0
+    a0, a1 = f - static_force, t - 0.0
+    g0 = start0 - linear0 - gdt * (h[0, 0] * a0 + h[0, 1] * a1)
+    g1 = start1 - linear1 - gdt * (h[1, 0] * a0 + h[1, 1] * a1)
+    # (I - gdt H J) step = g.
+    m00 = 1.0 - gdt * (h[0, 0] * j00 + h[0, 1] * j10)
+    m01 = 0.0 - gdt * (h[0, 0] * j01 + h[0, 1] * j11)
+    m10 = 0.0 - gdt * (h[1, 0] * j00 + h[1, 1] * j10)
+    m11 = 1.0 - gdt * (h[1, 0] * j01 + h[1, 1] * j11)
+    determinant = m00 * m11 - m01 * m10
+    s0 = (m11 * g0 - m01 * g1) / determinant
+    s1 = (m00 * g1 - m10 * g0) / determinant
+    x0, x1 = start0 - s0, start1 - s1
+    c0 = f - (j00 * s0 + j01 * s1)
+    c1 = t - (j10 * s0 + j11 * s1)
+    safe = (np.sign(x0) == np.sign(start0) and np.sign(x1) == np.sign(start1)
+            and abs(s0) <= 0.5 * abs(start0) and not lifted and c0 < 0 and x0 > touch
+            and x1 > 0)
+    if safe and x1 >= fade_speed:                           # where the torque may fade
+        mean_force = law_point(x0, x1, 1.0, 0.0, 1.0, False, law)[0]
+        threshold = (law[2] * np.sqrt(x1 * x1 + law[5] * law[5]) - law[0]) / law[1]
+        safe = mean_force < minimum(threshold, -TORQUE_FADE_FORCE_N)
+    if safe:
+        return x0, x1, c0, c1, False, j00, j01, j10, j11, True, 0
+    c_0, c_1 = gdt * h[0, 0], gdt * h[1, 1]
+    b0, b1 = linear0 - c_0 * static_force, linear1 - c_1 * 0.0
+    if not b0 > maximum(touch, cutting_rate(0.0, b1, law)):
+        # A bit that cannot reach the rock (or outruns the law's cut at zero force) at the
+        # speed it has without a rock torque is free: F = 0, omega = b2, no search.
+        rop, omega, f1, f2 = b0, b1, 0.0, 0.0
+    else:
+        rop, omega, f1, f2, _, _ = solve_one(b0, b1, c_0, c_1, touch, g11, g12, g22, random,
+                                             start1, law)
+    free = f1 >= 0.0
+    if free:                      # the Jacobian of a guarded member is the law's at the iterate
+        j00 = j01 = j10 = j11 = 0.0
+    solved = np.isfinite(rop) and np.isfinite(omega)
+    return rop, omega, f1, f2, free, j00, j01, j10, j11, solved, 1
+
+
+@kernel
+def finish(d_pred, v_pred, a, cd, cv, bit_axial_row, hole, bit_force, bit_torque,
+           static_force, bit_rows, axial_index, torsion_index, final_full, final_modal,
+           error, bit_ok, tolerance, q, q_rate, q_acceleration, hole_out, finite, converged):
+    """The end of a step: the bit's exact forces into the final evaluation (final_full
+    (n_dofs, m), final_modal (n, m)), the new state members first (q, q_rate,
+    q_acceleration (m, n), hole_out (m,): the hole only deepens), finite and converged (m,).
+    Returns the number of members converged."""
+    n, members = a.shape
+    count = 0
+    for i in range(members):
+        change0 = bit_force[i] - static_force
+        change1 = bit_torque[i] - 0.0
+        final_full[axial_index, i] += change0
+        final_full[torsion_index, i] += change1
+        bit_u = 0.0
+        ok = True
+        for j in range(n):
+            final_modal[j, i] += change0 * bit_rows[0, j] + change1 * bit_rows[1, j]
+            d = d_pred[j, i] + cd * a[j, i]
+            v = v_pred[j, i] + cv * a[j, i]
+            q[i, j], q_rate[i, j], q_acceleration[i, j] = d, v, a[j, i]
+            bit_u += d * bit_axial_row[j]
+            ok = ok and np.isfinite(d) and np.isfinite(v)
+        hole_out[i] = maximum(hole[i], bit_u)
+        finite[i] = ok
+        converged[i] = ok and bit_ok[i] and error[i] <= tolerance
+        count += converged[i]
+    return count
+
+
+@kernel
+def step(state, step_inputs, bookkeeping, forces, operators, work, final, out):
+    """One Newmark step of m members: begin, then (fields, forces of the string, update)
+    until every member is done or max_iterations, then finish. Arguments are tuples:
+
+    state: (q, q_rate, q_acceleration (m, n) members first, hole (m,), has_hole);
+    step_inputs: (top_speed, top_acceleration, load (n,), max_iterations);
+    bookkeeping: (have_rate, have_active, rate, since, previous_contact, previous_lifted);
+    forces: the arguments of forces.string_forces before the kinematics;
+    operators: (shapes (4,), shapes_t (4,), ranges, bit_node, n_nodes, mass, mass is I,
+    damping blocks (4,), stiffness, stiffness diagonal, S0^-1 blocks (4,), their row groups
+    (4, 2), local directions, S0^-1 U, U^T S0^-1 U,
+    B^T, S0^-1 B, B^T S0^-1 B, bit axial row, bit axial and torsion DOF, dt, beta dt^2
+    (the contact's), tolerance, static force on bit, bit_rock, law constants, fade speed,
+    germs, random);
+    work: StepWork arrays and the forces' Workspace arrays; final: _FinalEvaluation.arrays;
+    out: (q, q_rate, q_acceleration, hole, finite, converged) of the new state.
+
+    Returns (iterations, iterations in which a member needed the bracketed bit solve,
+    members converged).
+    """
+    q, q_rate, q_acceleration, hole_in, has_hole = state
+    top_speed, top_acceleration, load, max_iterations = step_inputs
+    have_rate, have_active, rate, since, previous_contact, previous_lifted = bookkeeping
+    switches, strain_arguments, coupling_arguments, contact_arguments = forces
+    (shapes, shapes_t, ranges, bit_node, n_nodes, mass, mass_is_identity, damping, stiffness,
+     stiffness_diagonal, effective_inverse, groups, local_directions, local_response, local_gram,
+     bit_rows, bit_response, bit_flexibility, bit_axial_row, axial_index, torsion_index, dt,
+     dt2, tolerance, static_force, bit_rock, law, fade_speed, germ, random) = operators
+    (d_pred, v_pred, a, d, v, residual, y, modal, product, responses, touch, hole, error,
+     previous_error, active, bit_ok, scratch, flexibilities, on_wall, displacement_t, theta_x_rate_t, theta_x_acceleration_t,
+     bending_y_rate_t, bending_y_acceleration_t, bending_z_rate_t, strain, linear, stress,
+     coupling, force_t, radial, in_contact, tangent) = work
+    (final_full, final_modal, final_radial, final_contact, final_tangent, bit_rop, bit_omega,
+     bit_force, bit_torque, bit_lifted, bit_jacobian, bit_solved) = final
+    q_out, q_rate_out, q_acceleration_out, hole_out, finite, converged = out
+    begin(q, q_rate, q_acceleration, hole_in, has_hole, dt, bit_axial_row, d_pred, v_pred, a,
+          touch, hole, error, active, bit_ok)
+    cd, cv = BETA * dt * dt, GAMMA * dt
+    iterations, robust = 0, 0
+    for iteration in range(1, max_iterations + 1):
+        iterations = iteration
+        fields(a, d_pred, v_pred, cd, cv, top_speed, top_acceleration, shapes[0], shapes[1],
+               shapes[2], shapes[3], ranges, d, v, displacement_t, theta_x_rate_t,
+               theta_x_acceleration_t, bending_y_rate_t, bending_y_acceleration_t,
+               bending_z_rate_t)
+        force_t[:, :] = 0.0
+        touching = string_forces(switches, strain_arguments, coupling_arguments,
+                                 contact_arguments, displacement_t, theta_x_rate_t,
+                                 theta_x_acceleration_t, bending_y_rate_t,
+                                 bending_y_acceleration_t, bending_z_rate_t, strain, linear,
+                                 stress, coupling, force_t, radial, in_contact, tangent)
+        still, used = update(
+            iteration, force_t, radial, in_contact, tangent, touching, theta_x_rate_t,
+            bit_node, n_nodes, shapes_t[0], shapes_t[1], shapes_t[2], shapes_t[3], ranges,
+            mass, mass_is_identity, damping, stiffness, stiffness_diagonal, effective_inverse,
+            groups, local_directions, local_response, local_gram, bit_rows, bit_response,
+            bit_flexibility, dt, dt2, tolerance, load, static_force, bit_rock, law,
+            fade_speed, germ, random, have_rate, have_active, rate, since, previous_contact,
+            previous_lifted, d, v, a, modal, residual, y, product, responses, touch, error,
+            previous_error, active, bit_ok, scratch, flexibilities, on_wall, final_full, final_modal, final_radial,
+            final_contact, final_tangent, bit_rop, bit_omega, bit_force, bit_torque,
+            bit_lifted, bit_jacobian, bit_solved)
+        robust += used
+        if still == 0:
+            break
+    count = finish(d_pred, v_pred, a, cd, cv, bit_axial_row, hole, bit_force, bit_torque,
+                   static_force, bit_rows, axial_index, torsion_index, final_full,
+                   final_modal, error, bit_ok, tolerance, q_out, q_rate_out,
+                   q_acceleration_out, hole_out, finite, converged)
+    return iterations, robust, count
