@@ -238,7 +238,8 @@ class NewmarkIntegrator:
         """f_NL at a state, with the bit-rock law of Eq. 25 at its velocities when the bit is
         on bottom (and no rock force when it is off bottom)."""
         fields = Kinematics.of(self.system, state.q, state.q_rate, state.q_acceleration,
-                               state.top_speed_rad_per_s, state.top_acceleration_rad_per_s2)
+                               state.top_speed_rad_per_s, state.top_acceleration_rad_per_s2,
+                               state.top_angle_rad)
         evaluation = self._forces_without_bit.evaluate(fields, self.germ)
         if not self.forces.physics.bit_rock:
             return evaluation
@@ -304,7 +305,8 @@ class NewmarkIntegrator:
         for iterations in range(1, self.max_iterations + 1):
             d = d_pred + BETA * dt * dt * a
             v = v_pred + GAMMA * dt * a
-            fields = Kinematics.of(self.system, d, v, a, top_speed_rad_per_s, top_acceleration)
+            fields = Kinematics.of(self.system, d, v, a, top_speed_rad_per_s, top_acceleration,
+                                   top_angle)
             evaluation = self._forces_without_bit.evaluate(fields, self.germ)
             self.counters.force_evaluations += 1
             # Frozen members were evaluated at their final state: keep that evaluation.
