@@ -431,6 +431,21 @@ class Excitation:
     imbalance: Imbalance = field(default_factory=Imbalance)
 
 
+KineticCouplingSign = Literal['derived', 'printed']
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class LateralReadings:
+    """Readings of the paper tested for its lateral response (issue 12, section 1); the
+    defaults are the project's readings (docs/MODEL-CHOICES.md, docs/LATERAL.md).
+
+    kinetic_coupling: 'derived' (T_c = -rho I_p theta_x' theta_y theta_z', the sign that
+    follows from the rotation sequence) or 'printed' (Eq. 8-11 as printed: the opposite).
+    """
+
+    kinetic_coupling: KineticCouplingSign = 'derived'
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class DrillStringConfig:
     """A whole vertical drill string, its hole, fluid, bit and the model choices."""
@@ -451,6 +466,7 @@ class DrillStringConfig:
     initial_conditions: InitialConditions
     output: Output
     excitation: Excitation = field(default_factory=Excitation)
+    lateral_readings: LateralReadings = field(default_factory=LateralReadings)
     source: str = field(default='<defaults>', compare=False)
     """Where the configuration came from (for error messages and log metadata)."""
 
