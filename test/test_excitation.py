@@ -16,7 +16,9 @@ from conftest import config_with, default_raw
 from drill_twin.config import ConfigError
 from drill_twin.dynamics.excitation import ImbalanceForce
 from drill_twin.dynamics.forces import Kinematics
+from drill_twin.dynamics.reduced_system import build_reduced_system
 from drill_twin.dynamics.simulator import Simulator
+from drill_twin.fem import dofs
 from drill_twin.fem.harmonic import forced_whirl
 from drill_twin.modal.reduced_basis import modal_analysis
 
@@ -61,7 +63,6 @@ def test_imbalance_force_follows_from_lagranges_equations():
     """(F_v, F_w, T_x) = -(d/dt dT_e/dq' - dT_e/dq) for q = (v, w, theta_x) of the node,
     derivatives taken numerically from T_e alone (complex step, central differences)."""
     model, _, basis = modal_analysis(_config())
-    from drill_twin.dynamics.reduced_system import build_reduced_system
     system = build_reduced_system(model, basis)
     force = ImbalanceForce.of(system)
     node = force.node
@@ -142,7 +143,6 @@ def resonance_rad_per_s():
     """The lateral mode in 3-6 rad/s that moves the imbalance's node most (modal analysis)."""
     model, modes, _ = modal_analysis(_config())
     node = model.mesh.nearest_node(POSITION_M)
-    from drill_twin.fem import dofs
     lateral = np.flatnonzero((modes.kind == 'lateral') & ~modes.rigid)
     omega = 2 * np.pi * modes.frequency_hz[lateral]
     band = lateral[(omega > 3.0) & (omega < 6.0)]
