@@ -5,7 +5,6 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-import numpy as np
 from test_excitation import _config
 
 from drill_twin.dynamics.power_balance import TERMS, LateralEnergyBalance
