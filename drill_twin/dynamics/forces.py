@@ -15,6 +15,7 @@ import numpy as np
 from drill_twin.dynamics.bit_rock import BitRockLaw
 from drill_twin.dynamics.compiled import kernel
 from drill_twin.dynamics.contact import ContactForces, accumulate_contact
+from drill_twin.dynamics.excitation import ImbalanceForce
 from drill_twin.dynamics.finite_strain import StrainOperators, accumulate_finite_strain
 from drill_twin.dynamics.kinetic_coupling import CouplingOperators, accumulate_kinetic_coupling
 from drill_twin.dynamics.reduced_system import ReducedSystem
@@ -29,7 +30,9 @@ class Kinematics:
     force depends). Rates and accelerations include the driven rotation:
     theta_x_rate, theta_x_acceleration: (m, n_nodes); bending_y_rate,
     bending_y_acceleration: (v, theta_z) rates, (m, 2 n_nodes); bending_z_rate: (w, theta_y),
-    (m, 2 n_nodes); bit_axial_rate: ROP, (m,).
+    (m, 2 n_nodes); bit_axial_rate: ROP, (m,). For the excitation (dynamics/excitation.py):
+    bending_z_acceleration: (w, theta_y), (m, 2 n_nodes) (None if not computed);
+    top_angle_rad: the top-drive angle (rad), which the local spin angle adds to the twist.
     """
 
     displacement: np.ndarray
@@ -39,10 +42,14 @@ class Kinematics:
     bending_y_acceleration: np.ndarray
     bending_z_rate: np.ndarray
     bit_axial_rate: np.ndarray
+    bending_z_acceleration: np.ndarray | None = None
+    top_angle_rad: float = 0.0
 
     @classmethod
-    def of(cls, system: ReducedSystem, d, v, a, top_speed: float, top_acceleration: float):
-        """Fields of reduced coordinates d, v, a (m, n) and the top-drive speed/acceleration.
+    def of(cls, system: ReducedSystem, d, v, a, top_speed: float, top_acceleration: float,
+           top_angle: float = 0.0):
+        """Fields of reduced coordinates d, v, a (m, n), the top-drive speed/acceleration and
+        its angle ``top_angle`` (rad).
 
         The arrays are transposed views of members-last arrays (the kernels' layout), so the
         forces read them without a copy.
@@ -64,7 +71,9 @@ class Kinematics:
             bending_y_rate=(y.shapes @ v[:, y.columns].T).T,
             bending_y_acceleration=(y.shapes @ a[:, y.columns].T).T,
             bending_z_rate=(z.shapes @ v[:, z.columns].T).T,
-            bit_axial_rate=v[:, axial.columns] @ axial.shapes[system.bit_node])
+            bit_axial_rate=v[:, axial.columns] @ axial.shapes[system.bit_node],
+            bending_z_acceleration=(z.shapes @ a[:, z.columns].T).T,
+            top_angle_rad=float(top_angle))
 
 
 def members_last(array: np.ndarray, buffer: np.ndarray) -> np.ndarray:
@@ -175,6 +184,7 @@ class NonlinearForces:
         self.coupling_operators = CouplingOperators.of(system)
         self.clearance_m = np.ascontiguousarray(system.clearance_m, dtype=float)
         self.outer_radius_m = np.ascontiguousarray(system.node_outer_radius_m, dtype=float)
+        self.imbalance = ImbalanceForce.of(system)     # excitation.imbalance, None when off
         self._workspace = None
         self._step_workspace = None
         physics, borehole = self.physics, self.borehole
@@ -239,6 +249,8 @@ class NonlinearForces:
             members_last(fields.bending_y_acceleration, work.bending_y_acceleration_t),
             members_last(fields.bending_z_rate, work.bending_z_rate_t),
             work, force_t, radial, in_contact)
+        if self.imbalance is not None:                # issue 12: rotating imbalance force
+            self.imbalance.accumulate(fields, force_t)
         tangent = work.tangent.copy() if touching else None
         physics = self.physics
         rop = fields.bit_axial_rate

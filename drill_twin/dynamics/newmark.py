@@ -257,7 +257,8 @@ class NewmarkIntegrator:
         """f_NL at a state, with the bit-rock law of Eq. 25 at its velocities when the bit is
         on bottom (and no rock force when it is off bottom)."""
         fields = Kinematics.of(self.system, state.q, state.q_rate, state.q_acceleration,
-                               state.top_speed_rad_per_s, state.top_acceleration_rad_per_s2)
+                               state.top_speed_rad_per_s, state.top_acceleration_rad_per_s2,
+                               state.top_angle_rad)
         evaluation = self._forces_without_bit.evaluate(fields, self.germ)
         if not self.forces.physics.bit_rock:
             return evaluation
