@@ -16,6 +16,7 @@ from conftest import config_with, default_raw
 from drill_twin.config import ConfigError
 from drill_twin.dynamics.excitation import ImbalanceForce
 from drill_twin.dynamics.forces import Kinematics
+from drill_twin.dynamics.newmark import NewmarkIntegrator
 from drill_twin.dynamics.reduced_system import build_reduced_system
 from drill_twin.dynamics.simulator import Simulator
 from drill_twin.fem import dofs
@@ -169,3 +170,68 @@ def test_steady_forced_whirl_matches_the_harmonic_response(where, resonance_rad_
     peak = forced_whirl(model, force.node, force.unbalance_kg_m, resonance_rad_per_s)
     below = forced_whirl(model, force.node, force.unbalance_kg_m, resonance_rad_per_s - 1.5)
     assert peak.radius_m > 2.5 * below.radius_m
+
+
+def test_the_compiled_step_applies_the_imbalance_at_the_nodes_spin_angle():
+    """The Newmark step (compiled) and NonlinearForces.evaluate sum the imbalance in the same
+    kernel; the step's wiring (the top-drive angle at the end of the step, the node's w''
+    computed in the step) is checked against Lagrange's forces written out in numpy. A step
+    limited to one iteration returns the forces of its first iterate, whose kinematics are
+    known: d = q + dt q' + dt^2 a / 2, v = q' + dt a, a the last accelerations, with the new
+    top speed, acceleration and angle. Only the imbalance acts on the string (f_se, f_ke,
+    wall, bit off), so that f_NL is the imbalance's. A stale top angle (it advances by
+    0.05 rad per step) or a missing w'' (the reaction torque) fails."""
+    simulator = Simulator(_config(5.2))
+    system, force = simulator.system, simulator.forces.imbalance
+    me, mee = force.unbalance_kg_m, force.inertia_kg_m2
+    for _ in range(150):
+        simulator.step()
+    state, dt = simulator.state, simulator.dt
+    one_iteration = NewmarkIntegrator(simulator.forces, dt, 1e-6, 1)
+    speed = state.top_speed_rad_per_s + 0.05
+    after, result = one_iteration.step(state, speed, state.hook_load_n)
+    full = result.forces.full[0]
+    u = system.physical(state.q + dt * state.q_rate + 0.5 * dt * dt * state.q_acceleration)[0]
+    rate = system.physical(state.q_rate + dt * state.q_acceleration)[0]
+    acceleration = system.physical(state.q_acceleration)[0]
+    x_row, v_row, w_row = force.theta_x_row, force.v_row, force.w_row
+    angle = after.top_angle_rad + u[x_row]
+    spin = rate[x_row] + speed
+    spin_rate = acceleration[x_row] + after.top_acceleration_rad_per_s2
+    assert after.top_acceleration_rad_per_s2 == pytest.approx(5.0)
+    expected = np.array([
+        me * (spin ** 2 * np.cos(angle) + spin_rate * np.sin(angle)),
+        me * (spin ** 2 * np.sin(angle) - spin_rate * np.cos(angle)),
+        me * (acceleration[v_row] * np.sin(angle) - acceleration[w_row] * np.cos(angle))
+        - mee * spin_rate])
+    reaction = me * abs(acceleration[w_row] * np.cos(angle))
+    assert reaction > 1e-4 * np.abs(expected).max()          # w'' counts at this tolerance
+    got = full[[v_row, w_row, x_row]]
+    np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-9 * np.abs(expected).max())
+    assert np.all(np.delete(full, [v_row, w_row, x_row]) == 0.0)
+    # The end-of-step state through evaluate (the Python path) against the same formula.
+    simulator.step()
+    state = simulator.state
+    u, rate, acceleration = (system.physical(x)[0] for x in (state.q, state.q_rate,
+                                                             state.q_acceleration))
+    angle = state.top_angle_rad + u[x_row]
+    spin = rate[x_row] + state.top_speed_rad_per_s
+    spin_rate = acceleration[x_row] + state.top_acceleration_rad_per_s2
+    again = simulator.integrator.evaluate(state).full[0]
+    np.testing.assert_allclose(
+        again[[v_row, w_row]],
+        me * np.array([spin ** 2 * np.cos(angle) + spin_rate * np.sin(angle),
+                       spin ** 2 * np.sin(angle) - spin_rate * np.cos(angle)]), rtol=1e-9)
+
+
+def test_without_imbalance_its_operands_are_inert():
+    """Off, the kernels get an operand tuple of the same types with its switch off (no
+    force anywhere, nothing evaluated)."""
+    simulator = Simulator(config_with({'physics': dict(default_raw()['physics'],
+                                                       finite_strain=False,
+                                                       kinetic_coupling=False)}))
+    forces = simulator.forces
+    assert forces.imbalance is None and forces.imbalance_arguments[0] is False
+    on = ImbalanceForce.arguments_of(Simulator(_config()).forces.imbalance,
+                                     simulator.system)
+    assert [type(a) for a in on] == [type(a) for a in forces.imbalance_arguments]
