@@ -15,6 +15,7 @@ from drill_twin.dynamics.contact_events import (ContactEpisodes, LiftOffEpisodes
                                                 event_rate_per_s, radial_gap_m)
 from drill_twin.dynamics.simulator import Simulator
 from drill_twin.fem.harmonic import forced_whirl
+from drill_twin.simulation.summary import summarize
 
 
 def test_a_chattering_contact_is_one_episode():
@@ -98,8 +99,7 @@ def _whirl_at_the_wall(friction, unbalance_kg_m=400.0, duration_s=10.0):
     force_model = simulator.forces.imbalance
     free = forced_whirl(system.model, force_model.node, force_model.unbalance_kg_m, spin)
     clearance = float(system.clearance_m[force_model.node])
-    return (np.array(dissipation), passed, deepest, free, clearance, episodes,
-            int(simulator.impact_count[0]))
+    return (np.array(dissipation), passed, deepest, free, clearance, episodes, simulator)
 
 
 @pytest.mark.parametrize('friction', [0.0, 0.3])
@@ -110,7 +110,9 @@ def test_the_wall_never_does_net_positive_work(friction):
     energy it exchanges (the trapezoidal rule's error at the kinks); with mu = 0.3 it
     dissipates. The wall holds a BHA whose free orbit overshoots it by centimetres within a
     penetration below 2 mm, and the episodes are fewer than the raw contact onsets."""
-    dissipation, passed, deepest, free, clearance, episodes, onsets = _whirl_at_the_wall(friction)
+    dissipation, passed, deepest, free, clearance, episodes, simulator = _whirl_at_the_wall(
+        friction)
+    onsets = int(simulator.contact_onset_count[0])
     assert free.radius_m > clearance + 0.03                 # the free orbit would be outside
     assert passed > 1e3                                       # the wall really works (J)
     assert dissipation.min() >= -1e-6 * passed
@@ -123,3 +125,40 @@ def test_the_wall_never_does_net_positive_work(friction):
     events = episodes.history + episodes.open_events
     assert all(e.peak_force_n == pytest.approx(1e8 * e.peak_penetration_m) for e in events)
     assert all(1400.0 < e.depth_m <= 1600.0 for e in events)    # in the BHA
+    # The Simulator's own tracker, fed from the step's contact flags and forces (the gap
+    # computed only where an open episode no longer touches), counts the same episodes as
+    # this one, fed with the full gap of the end-of-step state.
+    assert simulator.impact_count.tolist() == episodes.count.tolist()
+    assert episodes.count[0] < onsets                       # fewer than the raw onsets
+
+
+def test_the_simulator_counts_a_bit_lift_off_once_and_the_summary_gives_rates():
+    """Pulled up by a hook load far above the string's weight, the bit leaves the rock: the
+    Simulator's lift-off tracker (hysteresis: test above) counts one episode, in progress;
+    the summary turns the running counts into counts and rates in its window."""
+    config = _config(2.0, bit_rock=True)
+    simulator = Simulator(config)
+    assert simulator.lift_off_count.tolist() == [0]
+    simulator.set_hook_load(simulator.hook_load_command_n + 5e5)
+    lifted = []
+    for _ in range(200):
+        simulator.step()
+        lifted.append(bool(simulator.last.lifted[0]))
+    assert lifted[-1] and simulator.lift_off_count.tolist() == [1]
+    assert simulator.lift_off_episodes.lifted[0]
+    time = np.arange(11) * 0.5
+    result = SimpleNamespace(
+        time_s=time, window=lambda seconds: time >= time[-1] - seconds - 1e-9,
+        channels={'impacts_so_far': np.array([[0, 1, 1, 3, 3, 3, 4, 6, 6, 6, 9]]),
+                  'lift_offs_so_far': np.array([[0] * 8 + [1, 1, 1]]),
+                  'landings_so_far': np.zeros((1, 11), dtype=int),
+                  **{name: np.ones((1, 11)) for name in (
+                      'rop_m_per_s', 'bit_speed_rad_per_s', 'weight_on_bit_n',
+                      'torque_on_bit_nm')}},
+        impact_count=np.array([9]), lift_off_count=np.array([1]), retries=0,
+        real_time_factor=1.0, time_step_s=0.5)
+    summary = summarize(result, 2.0, 0.3)
+    assert summary['window_s'] == 2.0
+    assert (summary['impact_count'], summary['lift_off_count']) == (5, 1)
+    assert summary['impact_rate_per_s'] == 2.5 and summary['lift_off_rate_per_s'] == 0.5
+    assert summary['impact_count_whole_run'] == 9

@@ -2,7 +2,7 @@
 separation of the bit from the rock (issue 12, section 3).
 
 A node whirling along the wall, or grazing it, crosses r = c (c the clearance) back and forth
-at every step; counting every onset (what ``Simulator.impact_count`` does) counts that
+at every step; counting every onset (``Simulator.contact_onset_count``) counts that
 chatter. Here an episode opens when the node first penetrates the wall (r - c > 0) and closes
 only when it has come away from the wall by more than ``release_m`` (r - c < -release_m):
 hysteresis in the radial gap. Each episode is one impact event, with the node's depth, the
@@ -14,7 +14,10 @@ The bit likewise: a lift-off episode opens when the rock stops pushing on the bi
 is one lift-off, not many.
 
 The trackers are fed after every step (they keep per-member state); counts and rates over a
-window are the KPIs.
+window are the KPIs. The :class:`~drill_twin.dynamics.simulator.Simulator` feeds one of each
+(``Simulator.impact_count`` and ``lift_off_count`` are their counts) from the contact flags
+and forces of its step (:meth:`ContactEpisodes.update_from_contact`: the gap is computed only
+at the nodes of open episodes that no longer touch).
 """
 from __future__ import annotations
 
@@ -37,6 +40,15 @@ def radial_gap_m(system, displacement: np.ndarray) -> np.ndarray:
     v = displacement[:, system.field(2)]
     w = displacement[:, system.field(4)]
     return np.hypot(v, w) - system.clearance_m
+
+
+def node_gap_m(system, q: np.ndarray, members: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+    """r - c of k (member, node) pairs from the reduced coordinates q (m, n), (k,) (m)."""
+    y, z = system.blocks['bending_y'], system.blocks['bending_z']
+    rows = q[members]
+    v = np.einsum('kj,kj->k', y.shapes[nodes], rows[:, y.columns])
+    w = np.einsum('kj,kj->k', z.shapes[nodes], rows[:, z.columns])
+    return np.hypot(v, w) - system.clearance_m[nodes]
 
 
 @dataclass
@@ -62,13 +74,15 @@ class ContactEpisodes:
     """Wall-contact episodes of m members over n nodes (see the module docstring).
 
     node_depth_m: (n_nodes,); release_m: the gap hysteresis (m, >= 0). ``opened`` and
-    ``closed`` hold the events of the last update; ``history`` every closed event;
+    ``closed`` hold the events of the last update; ``history`` every closed event (unless
+    keep_history is False: a long run's tracker keeps only counts and open episodes);
     ``count`` (m,) episodes opened since the start.
     """
 
     members: int
     node_depth_m: np.ndarray
     release_m: float = IMPACT_RELEASE_M
+    keep_history: bool = True
     count: np.ndarray = field(init=False)
     history: list = field(init=False, default_factory=list)
     opened: list = field(init=False, default_factory=list)
@@ -81,6 +95,12 @@ class ContactEpisodes:
         self.count = np.zeros(self.members, dtype=int)
         self._open: dict[tuple[int, int], ImpactEvent] = {}
 
+    def prime(self, time_s: float, in_contact: np.ndarray) -> None:
+        """Contact already there at the start (m, n_nodes): open episodes, not counted."""
+        for member, node in zip(*np.nonzero(np.asarray(in_contact, dtype=bool))):
+            self._open[(int(member), int(node))] = ImpactEvent(
+                int(member), int(node), float(self.node_depth_m[node]), float(time_s))
+
     @property
     def open_events(self) -> list:
         """Episodes still in progress."""
@@ -88,10 +108,29 @@ class ContactEpisodes:
 
     def update(self, time_s: float, gap_m: np.ndarray, radial_force_n: np.ndarray) -> None:
         """Feed one step: gap r - c and radial wall force, both (m, n_nodes)."""
-        self.opened, self.closed = [], []
         gap = np.asarray(gap_m, dtype=float)
+        self._advance(time_s, gap > 0.0, np.asarray(radial_force_n, dtype=float), gap,
+                      lambda members, nodes: gap[members, nodes])
+
+    def update_from_contact(self, time_s: float, in_contact: np.ndarray,
+                            radial_force_n: np.ndarray, stiffness_n_per_m: float,
+                            gap_of) -> None:
+        """Feed one step from what the contact force saw: in_contact and the radial force
+        F = k_ip (r - c), (m, n_nodes); ``gap_of(members, nodes)`` gives r - c of the pairs
+        (k,) (m) whose episode is open and which no longer touch (called only for those)."""
+        touching = np.asarray(in_contact, dtype=bool)
+        if not self._open and not touching.any():         # nothing touches, nothing open
+            self.opened, self.closed = [], []
+            return
         force = np.asarray(radial_force_n, dtype=float)
-        for member, node in zip(*np.nonzero(gap > 0.0)):
+        penetration = force / stiffness_n_per_m if stiffness_n_per_m > 0 else 0.0 * force
+        self._advance(time_s, touching, force, penetration, gap_of)
+
+    def _advance(self, time_s, touching, force, penetration, gap_of) -> None:
+        """Open or extend the episodes of the touching pairs; close the open ones that have
+        come away from the wall by more than release_m."""
+        self.opened, self.closed = [], []
+        for member, node in zip(*np.nonzero(touching)):
             key = (int(member), int(node))
             event = self._open.get(key)
             if event is None:
@@ -101,12 +140,19 @@ class ContactEpisodes:
                 self.opened.append(event)
                 self.count[member] += 1
             event.peak_force_n = max(event.peak_force_n, float(force[member, node]))
-            event.peak_penetration_m = max(event.peak_penetration_m, float(gap[member, node]))
-        for key in [k for k in self._open if gap[k] < -self.release_m]:
-            event = self._open.pop(key)
-            event.end_s = float(time_s)
-            self.closed.append(event)
-            self.history.append(event)
+            event.peak_penetration_m = max(event.peak_penetration_m,
+                                           float(penetration[member, node]))
+        waiting = [key for key in self._open if not touching[key]]
+        if not waiting:
+            return
+        members, nodes = (np.array(index, dtype=int) for index in zip(*waiting))
+        for key, gap in zip(waiting, np.asarray(gap_of(members, nodes), dtype=float)):
+            if gap < -self.release_m:
+                event = self._open.pop(key)
+                event.end_s = float(time_s)
+                self.closed.append(event)
+                if self.keep_history:
+                    self.history.append(event)
 
 
 @dataclass
@@ -130,6 +176,11 @@ class LiftOffEpisodes:
         self.count = np.zeros(self.members, dtype=int)
         self.lifted = np.zeros(self.members, dtype=bool)
         self.opened = np.zeros(self.members, dtype=bool)
+
+    def prime(self, lifted: np.ndarray) -> None:
+        """A bit already off the rock at the start (m,): an episode in progress, not
+        counted."""
+        self.lifted = np.array(lifted, dtype=bool)
 
     def update(self, lifted: np.ndarray, weight_on_bit_n: np.ndarray) -> None:
         """Feed one step: the bit's lifted flag and f_bit (N, < 0 in compression), (m,)."""
