@@ -12,7 +12,7 @@ from conftest import REPO
 
 SUMMARY_KEYS = {'rop_m_per_s', 'bit_speed_rad_per_s', 'weight_on_bit_n', 'torque_on_bit_nm',
                 'stick_slip_severity', 'mse_pa', 'impact_count', 'lift_off_count',
-                'real_time_factor', 'time_step_s'}
+                'impact_rate_per_s', 'lift_off_rate_per_s', 'real_time_factor', 'time_step_s'}
 
 
 def _run(*args, cwd=REPO):

@@ -485,6 +485,65 @@ class Drawworks:
 # -- end of the rig's drives ---------------------------------------------------------------------
 
 
+# -- excitation (issue 12, section 2): what real strings have and the paper leaves out --------
+IMBALANCE_MASS_MAX_KG = 1.0e5
+IMBALANCE_MASS_REASON = 'the whole 200 m collar section of the paper weighs 57 t'
+ECCENTRICITY_MAX_M = 0.5
+ECCENTRICITY_REASON = 'a mass centre half a metre off the axis is outside any borehole'
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Imbalance:
+    """A mass imbalance or bent-collar eccentricity at one node of the string.
+
+    The mass ``mass_kg`` (already part of the string's mass) has its centre at
+    ``eccentricity_m`` from the section's axis, in the direction fixed to the section that is
+    at angle theta_x (the local spin angle of the node, top-drive angle plus elastic twist) from
+    the y axis. It loads the node with m e (theta_x'^2 cos + theta_x'' sin,
+    theta_x'^2 sin - theta_x'' cos) on (v, w) and m e (v'' sin - w'' cos) - m e^2 theta_x''
+    on theta_x (docs/LATERAL.md). Applied at the mesh node nearest ``position_m`` (m, down
+    from the top).
+    """
+
+    enabled: bool = False
+    position_m: float = 1500.0
+    mass_kg: float = 0.0
+    eccentricity_m: float = 0.0
+
+    def __post_init__(self):
+        _non_negative(self, 'position_m', 'mass_kg', 'eccentricity_m')
+        _at_most(self, 'mass_kg', IMBALANCE_MASS_MAX_KG, IMBALANCE_MASS_REASON)
+        _at_most(self, 'eccentricity_m', ECCENTRICITY_MAX_M, ECCENTRICITY_REASON)
+        _at_most(self, 'position_m', LENGTH_MAX_M, LENGTH_REASON)
+
+    @property
+    def unbalance_kg_m(self) -> float:
+        """m e (kg m); zero when disabled."""
+        return self.mass_kg * self.eccentricity_m if self.enabled else 0.0
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Excitation:
+    """Sources of lateral excitation outside the paper's model (all off by default)."""
+
+    imbalance: Imbalance = field(default_factory=Imbalance)
+
+
+KineticCouplingSign = Literal['derived', 'printed']
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class LateralReadings:
+    """Readings of the paper tested for its lateral response (issue 12, section 1); the
+    defaults are the project's readings (docs/MODEL-CHOICES.md, docs/LATERAL.md).
+
+    kinetic_coupling: 'derived' (T_c = -rho I_p theta_x' theta_y theta_z', the sign that
+    follows from the rotation sequence) or 'printed' (Eq. 8-11 as printed: the opposite).
+    """
+
+    kinetic_coupling: KineticCouplingSign = 'derived'
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class DrillStringConfig:
     """A whole vertical drill string, its hole, fluid, bit and the model choices."""
@@ -506,6 +565,8 @@ class DrillStringConfig:
     output: Output
     top_drive: TopDrive = TopDrive()
     drawworks: Drawworks = Drawworks()
+    excitation: Excitation = field(default_factory=Excitation)
+    lateral_readings: LateralReadings = field(default_factory=LateralReadings)
     source: str = field(default='<defaults>', compare=False)
     """Where the configuration came from (for error messages and log metadata)."""
 
@@ -556,6 +617,11 @@ class DrillStringConfig:
                 'initial_conditions.lateral_deflection_m',
                 f'{self.initial_conditions.lateral_deflection_m:g} m does not fit in the hole '
                 f'(largest clearance {clearance:g} m): the string would start inside the wall')
+        imbalance = self.excitation.imbalance
+        if imbalance.enabled and imbalance.position_m > length:
+            raise ConfigValueError(
+                'excitation.imbalance.position_m',
+                f'{imbalance.position_m} m is below the bit (string length {length} m)')
         for index, x in enumerate(self.output.stations_m):
             if x > length:
                 raise ConfigValueError(

@@ -15,6 +15,7 @@ import numpy as np
 from drill_twin.dynamics.bit_rock import BitRockLaw
 from drill_twin.dynamics.compiled import kernel
 from drill_twin.dynamics.contact import ContactForces, accumulate_contact
+from drill_twin.dynamics.excitation import ImbalanceForce, accumulate_imbalance
 from drill_twin.dynamics.finite_strain import StrainOperators, accumulate_finite_strain
 from drill_twin.dynamics.kinetic_coupling import CouplingOperators, accumulate_kinetic_coupling
 from drill_twin.dynamics.reduced_system import ReducedSystem
@@ -29,7 +30,9 @@ class Kinematics:
     force depends). Rates and accelerations include the driven rotation:
     theta_x_rate, theta_x_acceleration: (m, n_nodes); bending_y_rate,
     bending_y_acceleration: (v, theta_z) rates, (m, 2 n_nodes); bending_z_rate: (w, theta_y),
-    (m, 2 n_nodes); bit_axial_rate: ROP, (m,).
+    (m, 2 n_nodes); bit_axial_rate: ROP, (m,). For the excitation (dynamics/excitation.py):
+    bending_z_acceleration: (w, theta_y), (m, 2 n_nodes) (None if not computed);
+    top_angle_rad: the top-drive angle (rad), which the local spin angle adds to the twist.
     """
 
     displacement: np.ndarray
@@ -39,10 +42,14 @@ class Kinematics:
     bending_y_acceleration: np.ndarray
     bending_z_rate: np.ndarray
     bit_axial_rate: np.ndarray
+    bending_z_acceleration: np.ndarray | None = None
+    top_angle_rad: float = 0.0
 
     @classmethod
-    def of(cls, system: ReducedSystem, d, v, a, top_speed: float, top_acceleration: float):
-        """Fields of reduced coordinates d, v, a (m, n) and the top-drive speed/acceleration.
+    def of(cls, system: ReducedSystem, d, v, a, top_speed: float, top_acceleration: float,
+           top_angle: float = 0.0):
+        """Fields of reduced coordinates d, v, a (m, n), the top-drive speed/acceleration and
+        its angle ``top_angle`` (rad).
 
         The arrays are transposed views of members-last arrays (the kernels' layout), so the
         forces read them without a copy.
@@ -64,7 +71,9 @@ class Kinematics:
             bending_y_rate=(y.shapes @ v[:, y.columns].T).T,
             bending_y_acceleration=(y.shapes @ a[:, y.columns].T).T,
             bending_z_rate=(z.shapes @ v[:, z.columns].T).T,
-            bit_axial_rate=v[:, axial.columns] @ axial.shapes[system.bit_node])
+            bit_axial_rate=v[:, axial.columns] @ axial.shapes[system.bit_node],
+            bending_z_acceleration=(z.shapes @ a[:, z.columns].T).T,
+            top_angle_rad=float(top_angle))
 
 
 def members_last(array: np.ndarray, buffer: np.ndarray) -> np.ndarray:
@@ -105,8 +114,9 @@ class Workspace:
     """Work arrays of the force kernels for a batch of m members (allocated once).
 
     displacement_t: (n_dofs, m); theta_x_rate_t, theta_x_acceleration_t: (n_nodes, m);
-    bending_y_rate_t, bending_y_acceleration_t, bending_z_rate_t: (2 n_nodes, m) (used only
-    when the kinematics are not laid out members last already); strain, linear, stress:
+    bending_y_rate_t, bending_y_acceleration_t, bending_z_rate_t, bending_z_acceleration_t:
+    (2 n_nodes, m) (used only when the kinematics are not laid out members last already;
+    the last one only by the imbalance); strain, linear, stress:
     (8, m); coupling: (9, m); tangent: (m, n_nodes, 2, 2).
     """
 
@@ -119,6 +129,7 @@ class Workspace:
         self.bending_y_rate_t = np.empty((2 * nodes, members))
         self.bending_y_acceleration_t = np.empty((2 * nodes, members))
         self.bending_z_rate_t = np.empty((2 * nodes, members))
+        self.bending_z_acceleration_t = np.empty((2 * nodes, members))   # the imbalance's
         self.strain = np.empty((se.N_STRAINS, members))
         self.linear = np.empty((se.N_STRAINS, members))
         self.stress = np.empty((se.N_STRAINS, members))
@@ -136,14 +147,18 @@ class Workspace:
 
 @kernel
 def string_forces(switches, strain_arguments, coupling_arguments, contact_arguments,
-                  displacement_t, theta_x_rate_t, theta_x_acceleration_t, bending_y_rate_t,
-                  bending_y_acceleration_t, bending_z_rate_t, strain, linear, stress, coupling,
-                  force_t, radial, in_contact, tangent):
-    """force_t += f_se + f_ke + f_ip (not the bit's), members last: the one place the forces
-    of the string are summed (:meth:`NonlinearForces.accumulate` and the Newmark step
-    kernel call it). switches: (finite strain, kinetic coupling, contact); the arguments of
-    each kernel are those of NonlinearForces. Returns the number of (member, node) pairs
-    touching the wall (radial, in_contact are zero and False without contact)."""
+                  imbalance_arguments, displacement_t, theta_x_rate_t, theta_x_acceleration_t,
+                  bending_y_rate_t, bending_y_acceleration_t, bending_z_rate_t,
+                  bending_z_acceleration_t, strain, linear, stress, coupling, force_t, radial,
+                  in_contact, tangent):
+    """force_t += f_se + f_ke + the imbalance + f_ip (not the bit's), members last: the one
+    place the forces of the string are summed (:meth:`NonlinearForces.accumulate` and the
+    Newmark step kernel call it). switches: (finite strain, kinetic coupling, contact); the
+    arguments of each kernel are those of NonlinearForces; imbalance_arguments: the
+    excitation's (:meth:`ImbalanceForce.arguments`, its first element says whether it is on;
+    only then is bending_z_acceleration_t read, at the imbalance's node). Returns the number
+    of (member, node) pairs touching the wall (radial, in_contact are zero and False without
+    contact)."""
     if switches[0]:
         accumulate_finite_strain(displacement_t, *strain_arguments, strain, linear, stress,
                                  force_t)
@@ -151,6 +166,10 @@ def string_forces(switches, strain_arguments, coupling_arguments, contact_argume
         accumulate_kinetic_coupling(displacement_t, theta_x_rate_t, theta_x_acceleration_t,
                                     bending_y_rate_t, bending_y_acceleration_t,
                                     bending_z_rate_t, *coupling_arguments, coupling, force_t)
+    if imbalance_arguments[0]:
+        accumulate_imbalance(imbalance_arguments, displacement_t, theta_x_rate_t,
+                             theta_x_acceleration_t, bending_y_acceleration_t,
+                             bending_z_acceleration_t, force_t)
     if not switches[2]:
         radial[:, :] = 0.0
         in_contact[:, :] = False
@@ -175,6 +194,10 @@ class NonlinearForces:
         self.coupling_operators = CouplingOperators.of(system)
         self.clearance_m = np.ascontiguousarray(system.clearance_m, dtype=float)
         self.outer_radius_m = np.ascontiguousarray(system.node_outer_radius_m, dtype=float)
+        self.imbalance = ImbalanceForce.of(system)     # excitation.imbalance, None when off
+        self.imbalance_arguments = ImbalanceForce.arguments_of(self.imbalance, system)
+        """The imbalance's kernel operands (inert when it is off); its top-drive angle is
+        set before every evaluation."""
         self._workspace = None
         self._step_workspace = None
         physics, borehole = self.physics, self.borehole
@@ -204,19 +227,27 @@ class NonlinearForces:
 
     def accumulate(self, displacement_t, theta_x_rate_t, theta_x_acceleration_t,
                    bending_y_rate_t, bending_y_acceleration_t, bending_z_rate_t,
-                   work: Workspace, force_t, radial, in_contact) -> int:
-        """force_t += f_se + f_ke + f_ip (not the bit's) of members-last kinematics (the
-        fields of :class:`Kinematics`, transposed: (n_dofs, m), (n_nodes, m) and (2 n_nodes, m)).
+                   work: Workspace, force_t, radial, in_contact,
+                   bending_z_acceleration_t=None) -> int:
+        """force_t += f_se + f_ke + imbalance + f_ip (not the bit's) of members-last
+        kinematics (the fields of :class:`Kinematics`, transposed: (n_dofs, m), (n_nodes, m)
+        and (2 n_nodes, m)); bending_z_acceleration_t is needed only with the imbalance on
+        (whose top-drive angle must have been set).
 
         radial, in_contact (m, n_nodes) receive the wall forces and flags (zero and False
         without contact physics), work.tangent their tangents. Returns the number of
         (member, node) pairs touching the wall. This is the one place the non-linear forces of
         the string are summed: :meth:`evaluate` and the Newmark step both call it.
         """
+        if bending_z_acceleration_t is None:
+            if self.imbalance is not None:
+                raise ValueError('the imbalance needs the (w, theta_y) accelerations')
+            bending_z_acceleration_t = work.bending_z_acceleration_t      # not read
         return string_forces(self.switches, self.strain_arguments, self.coupling_arguments,
-                             self.contact_arguments, displacement_t, theta_x_rate_t,
-                             theta_x_acceleration_t, bending_y_rate_t, bending_y_acceleration_t,
-                             bending_z_rate_t, work.strain, work.linear, work.stress,
+                             self.contact_arguments, self.imbalance_arguments, displacement_t,
+                             theta_x_rate_t, theta_x_acceleration_t, bending_y_rate_t,
+                             bending_y_acceleration_t, bending_z_rate_t,
+                             bending_z_acceleration_t, work.strain, work.linear, work.stress,
                              work.coupling, force_t, radial, in_contact, work.tangent)
 
     def evaluate(self, fields: Kinematics, germ=None) -> ForceEvaluation:
@@ -231,6 +262,12 @@ class NonlinearForces:
         force_t = np.zeros((system.n_dofs, m))
         radial = np.zeros((m, system.n_nodes))
         in_contact = np.zeros((m, system.n_nodes), dtype=bool)
+        bending_z_acceleration_t = None
+        if self.imbalance is not None:                # issue 12: rotating imbalance force
+            self.imbalance.set_top_angle(fields.top_angle_rad)
+            if fields.bending_z_acceleration is not None:
+                bending_z_acceleration_t = members_last(fields.bending_z_acceleration,
+                                                        work.bending_z_acceleration_t)
         touching = self.accumulate(
             members_last(fields.displacement, work.displacement_t),
             members_last(fields.theta_x_rate, work.theta_x_rate_t),
@@ -238,7 +275,7 @@ class NonlinearForces:
             members_last(fields.bending_y_rate, work.bending_y_rate_t),
             members_last(fields.bending_y_acceleration, work.bending_y_acceleration_t),
             members_last(fields.bending_z_rate, work.bending_z_rate_t),
-            work, force_t, radial, in_contact)
+            work, force_t, radial, in_contact, bending_z_acceleration_t)
         tangent = work.tangent.copy() if touching else None
         physics = self.physics
         rop = fields.bit_axial_rate

@@ -63,13 +63,19 @@ class CouplingOperators:
                    theta_z=_compressed_rows(system.theta_z_gauss),
                    torsion_row=b['torsional'].rows.start, bending_y_row=b['bending_y'].rows.start,
                    bending_z_row=b['bending_z'].rows.start,
-                   scale=np.ascontiguousarray(system.polar_inertia_density
+                   scale=np.ascontiguousarray(_sign(system) * system.polar_inertia_density
                                               * system.gauss_weight_m, dtype=float))
 
     def arguments(self) -> tuple:
         """Return the kernel's operator arguments, in its order."""
         return (*self.theta_x, *self.theta_y, *self.theta_z, self.torsion_row,
                 self.bending_y_row, self.bending_z_row, self.scale)
+
+
+def _sign(system) -> float:
+    """+1 for the derived T_c, -1 for the sign printed in Eq. 8-11
+    (``lateral_readings.kinetic_coupling``)."""
+    return -1.0 if system.model.config.lateral_readings.kinetic_coupling == 'printed' else 1.0
 
 
 @inline
@@ -192,5 +198,5 @@ def kinetic_coupling_energy(system, fields):
     theta_y = fields.displacement[:, system.blocks['bending_z'].rows] @ system.theta_y_gauss_t
     rate_x = fields.theta_x_rate @ system.theta_x_gauss_t
     rate_z = fields.bending_y_rate @ system.theta_z_gauss_t
-    scale = system.polar_inertia_density * system.gauss_weight_m
+    scale = _sign(system) * system.polar_inertia_density * system.gauss_weight_m
     return -np.sum(scale * rate_x * theta_y * rate_z, axis=-1)

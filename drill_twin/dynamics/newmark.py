@@ -236,7 +236,8 @@ class NewmarkIntegrator:
             BETA * self.time_step_s ** 2, self.tolerance)
         without_bit = self._forces_without_bit
         self._forces_arguments = (without_bit.switches, without_bit.strain_arguments,
-                                  without_bit.coupling_arguments, without_bit.contact_arguments)
+                                  without_bit.coupling_arguments, without_bit.contact_arguments,
+                                  without_bit.imbalance_arguments)
         self._bit_constants = self._law_constants(germ)
         self._work = None
         self._rate = None                 # per member: the contraction rate of its last
@@ -276,7 +277,8 @@ class NewmarkIntegrator:
         rock force when it is off bottom).
         """
         fields = Kinematics.of(self.system, state.q, state.q_rate, state.q_acceleration,
-                               state.top_speed_rad_per_s, state.top_acceleration_rad_per_s2)
+                               state.top_speed_rad_per_s, state.top_acceleration_rad_per_s2,
+                               state.top_angle_rad)
         evaluation = self._forces_without_bit.evaluate(fields, self.germ)
         if not self.forces.physics.bit_rock:
             return evaluation
@@ -360,6 +362,8 @@ class NewmarkIntegrator:
         hole = np.empty(members)
         finite = np.empty(members, dtype=bool)
         converged = np.empty(members, dtype=bool)
+        if self.forces.imbalance is not None:          # the angle its force turns with
+            self.forces.imbalance.set_top_angle(top_angle)
         iterations, robust, count = compiled.step(
             (np.ascontiguousarray(state.q), np.ascontiguousarray(state.q_rate),
              np.ascontiguousarray(state.q_acceleration),
@@ -414,7 +418,8 @@ class NewmarkIntegrator:
                            work.bit_ok, work.scratch, work.flexibilities, work.on_wall,
                            *forces.kinematics, forces.strain, forces.linear,
                            forces.stress, forces.coupling, forces.force_t, forces.radial,
-                           forces.in_contact, forces.tangent)
+                           forces.in_contact, forces.tangent,
+                           forces.bending_z_acceleration_t)
             work.no_contact = np.zeros((members, self.system.n_nodes), dtype=bool)
             work.no_lift = np.zeros(members, dtype=bool)
             self._work = work

@@ -20,6 +20,7 @@ from drill_twin.dynamics.bit_equation import solve_one
 from drill_twin.dynamics.bit_rock import (TORQUE_FADE_FORCE_N, cutting_rate, law_point, maximum,
                                           minimum)
 from drill_twin.dynamics.compiled import inline, kernel
+from drill_twin.dynamics.excitation import imbalance_node_acceleration
 from drill_twin.dynamics.forces import string_forces
 
 BETA = 0.25
@@ -445,14 +446,17 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out):
     state: (q, q_rate, q_acceleration (m, n) members first, hole (m,), has_hole);
     step_inputs: (top_speed, top_acceleration, load (n,), max_iterations);
     bookkeeping: (have_rate, have_active, rate, since, previous_contact, previous_lifted);
-    forces: the arguments of forces.string_forces before the kinematics;
+    forces: the arguments of forces.string_forces before the kinematics (the last: the
+    imbalance's, excitation.ImbalanceForce.arguments);
     operators: (shapes (4,), shapes_t (4,), ranges, bit_node, n_nodes, mass, mass is I,
     damping blocks (4,), stiffness, stiffness diagonal, S0^-1 blocks (4,), their row groups
     (4, 2), local directions, S0^-1 U, U^T S0^-1 U,
     B^T, S0^-1 B, B^T S0^-1 B, bit axial row, bit axial and torsion DOF, dt, beta dt^2
     (the contact's), tolerance, static force on bit, bit_rock, law constants, fade speed,
     germs, random);
-    work: StepWork arrays and the forces' Workspace arrays; final: _FinalEvaluation.arrays;
+    work: StepWork arrays and the forces' Workspace arrays (the last: the (w, theta_y)
+    accelerations, of which only the imbalance's node row is computed, when it is on);
+    final: _FinalEvaluation.arrays;
     out: (q, q_rate, q_acceleration, hole, finite, converged) of the new state.
 
     Returns (iterations, iterations in which a member needed the bracketed bit solve,
@@ -461,7 +465,7 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out):
     q, q_rate, q_acceleration, hole_in, has_hole = state
     top_speed, top_acceleration, load, max_iterations = step_inputs
     have_rate, have_active, rate, since, previous_contact, previous_lifted = bookkeeping
-    switches, strain_arguments, coupling_arguments, contact_arguments = forces
+    switches, strain_arguments, coupling_arguments, contact_arguments, imbalance = forces
     (shapes, shapes_t, ranges, bit_node, n_nodes, mass, mass_is_identity, damping, stiffness,
      stiffness_diagonal, effective_inverse, groups, local_directions, local_response, local_gram,
      bit_rows, bit_response, bit_flexibility, bit_axial_row, axial_index, torsion_index, dt,
@@ -470,7 +474,7 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out):
      previous_error, active, bit_ok, scratch, flexibilities, on_wall, displacement_t,
      theta_x_rate_t, theta_x_acceleration_t, bending_y_rate_t, bending_y_acceleration_t,
      bending_z_rate_t, strain, linear, stress,
-     coupling, force_t, radial, in_contact, tangent) = work
+     coupling, force_t, radial, in_contact, tangent, bending_z_acceleration_t) = work
     (final_full, final_modal, final_radial, final_contact, final_tangent, bit_rop, bit_omega,
      bit_force, bit_torque, bit_lifted, bit_jacobian, bit_solved) = final
     q_out, q_rate_out, q_acceleration_out, hole_out, finite, converged = out
@@ -484,12 +488,15 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out):
                shapes[2], shapes[3], ranges, d, v, displacement_t, theta_x_rate_t,
                theta_x_acceleration_t, bending_y_rate_t, bending_y_acceleration_t,
                bending_z_rate_t)
+        if imbalance[0]:                          # the imbalance's node w'' (issue 12)
+            imbalance_node_acceleration(imbalance, a, bending_z_acceleration_t)
         force_t[:, :] = 0.0
         touching = string_forces(switches, strain_arguments, coupling_arguments,
-                                 contact_arguments, displacement_t, theta_x_rate_t,
+                                 contact_arguments, imbalance, displacement_t, theta_x_rate_t,
                                  theta_x_acceleration_t, bending_y_rate_t,
-                                 bending_y_acceleration_t, bending_z_rate_t, strain, linear,
-                                 stress, coupling, force_t, radial, in_contact, tangent)
+                                 bending_y_acceleration_t, bending_z_rate_t,
+                                 bending_z_acceleration_t, strain, linear, stress, coupling,
+                                 force_t, radial, in_contact, tangent)
         still, used = update(
             iteration, force_t, radial, in_contact, tangent, touching, theta_x_rate_t,
             bit_node, n_nodes, shapes_t[0], shapes_t[1], shapes_t[2], shapes_t[3], ranges,

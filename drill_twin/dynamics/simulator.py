@@ -27,6 +27,7 @@ import numpy as np
 from drill_twin.config.schema import DrillStringConfig
 from drill_twin.dynamics.bit_rock import BitRockLaw
 from drill_twin.dynamics.contact import ContactForces
+from drill_twin.dynamics.contact_events import ContactEpisodes, LiftOffEpisodes, node_gap_m
 from drill_twin.dynamics.forces import ForceEvaluation, NonlinearForces
 from drill_twin.dynamics.newmark import (ON_BOTTOM_TOLERANCE_M, BatchState, NewmarkIntegrator,
                                          StepResult)
@@ -70,9 +71,10 @@ class Observation:
     station_displacement_m, station_velocity_m_per_s, station_acceleration_m_per_s2;
     station_spin_rate_rad_per_s (m, n_stations, 3) for
     (theta_x', theta_y', theta_z'). Wall: contact_force_n (m, n_nodes) radial force,
-    in_contact (m, n_nodes). Events counted at every step since the start: impacts_so_far
-    (onsets of wall contact, over all nodes), lift_offs_so_far and landings_so_far (the bit
-    tags the hole bottom after being off bottom), (m,).
+    in_contact (m, n_nodes). Events since the start: impacts_so_far (wall-contact episodes
+    over all nodes: one per episode, not per step touching, dynamics/contact_events.py),
+    lift_offs_so_far (lift-off episodes of the bit) and landings_so_far (the bit tags the hole
+    bottom after being off bottom), (m,).
     """
 
     time_s: float
@@ -156,8 +158,15 @@ class Simulator:
         self.state = self.integrator.initial_state(*self._initial_coordinates(speed), speed,
                                                    self.hook_load_command_n)
         self.last = self._evaluate(self.state)
-        self.impact_count = np.zeros(self.members, dtype=int)
-        self.lift_off_count = np.zeros(self.members, dtype=int)
+        # Events (issue 12): one impact per wall-contact episode, one lift-off per separation
+        # of the bit from the rock (hysteresis, dynamics/contact_events.py).
+        self.contact_episodes = ContactEpisodes(self.members, system.model.mesh.node_x_m,
+                                                keep_history=False)
+        self.lift_off_episodes = LiftOffEpisodes(self.members)
+        self.contact_episodes.prime(self.state.time_s, self.last.contact.in_contact)
+        self.lift_off_episodes.prime(self.last.lifted)
+        self.contact_onset_count = np.zeros(self.members, dtype=int)
+        """Raw onsets of wall contact (every step a node starts touching), (m,)."""
         self.landing_count = np.zeros(self.members, dtype=int)
         self.retries = 0
         """Member-steps integrated again on sub-steps since the start (all members)."""
@@ -244,14 +253,34 @@ class Simulator:
         previous = self.last
         self.state, self.last = new_state, result.forces
         if self.last.contact_tangent is not None or previous.contact_tangent is not None:
-            self.impact_count += np.sum(self.last.contact.in_contact
-                                        & ~previous.contact.in_contact, axis=1)
-        self.lift_off_count += self.last.lifted & ~previous.lifted
+            self.contact_onset_count += np.sum(self.last.contact.in_contact
+                                               & ~previous.contact.in_contact, axis=1)
+        self._count_episodes()
         on_bottom = self.on_bottom()
         self.landing_count += on_bottom & ~self._on_bottom
         self._on_bottom = on_bottom
         return StepResult(result.success, result.converged, result.finite, result.iterations,
                           result.error, result.message, result.forces, retries)
+
+    @property
+    def impact_count(self) -> np.ndarray:
+        """Borehole impacts since the start: wall-contact episodes (all nodes), (m,)."""
+        return self.contact_episodes.count
+
+    @property
+    def lift_off_count(self) -> np.ndarray:
+        """Bit lift-offs since the start: lift-off episodes, (m,)."""
+        return self.lift_off_episodes.count
+
+    def _count_episodes(self) -> None:
+        """Feed the step's contact flags and bit forces to the episode trackers."""
+        last, system = self.last, self.system
+        state = self.state
+        self.contact_episodes.update_from_contact(
+            state.time_s, last.contact.in_contact, last.contact.radial_force_n,
+            float(system.model.config.borehole.contact_stiffness_n_per_m),
+            lambda members, nodes: node_gap_m(system, state.q, members, nodes))
+        self.lift_off_episodes.update(last.lifted, last.weight_on_bit_n)
 
     def _retry(self, new_state: BatchState, result: StepResult, start_speed: float,
                speed: float):

@@ -39,7 +39,8 @@ class SimulationResult:
     'max_contact_force_n'); shared: name -> (n_t,); stations_m: (n_s,);
     station_displacement_m, station_velocity_m_per_s, station_acceleration_m_per_s2:
     (m, n_s, 3, n_t) for (axial, v, w); station_spin_rate_rad_per_s: (m, n_s, 3, n_t) for
-    (theta_x', theta_y', theta_z'); impact_count, lift_off_count: (m,) counted at every step;
+    (theta_x', theta_y', theta_z'); impact_count, lift_off_count: (m,) episodes
+    (Simulator.impact_count);
     time_step_s, steps, iterations, wall_time_s; retries: member-steps integrated again on
     sub-steps (Simulator.retries).
     """

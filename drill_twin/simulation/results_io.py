@@ -34,8 +34,8 @@ COLUMNS = {
     'hook_position_m': 'axial displacement of the top from the prestressed state (m)',
     'contact_nodes': 'number of nodes touching the borehole wall',
     'max_contact_force_n': 'largest radial wall force over the nodes (N)',
-    'impacts_so_far': 'borehole impacts (contact onsets, all nodes) since the start',
-    'lift_offs_so_far': 'bit lift-offs since the start',
+    'impacts_so_far': 'borehole impacts (wall-contact episodes, all nodes) since the start',
+    'lift_offs_so_far': 'bit lift-off episodes since the start',
     'landings_so_far': 'landings of the bit on the hole bottom since the start',
 }
 STATION_COLUMNS = {

@@ -10,12 +10,15 @@ def summarize(result: SimulationResult, window_s: float, bit_diameter_m: float,
     """Statistics of the last ``window_s`` seconds (see README, "simulate")."""
     mask = result.window(window_s)
     ch = result.channels
+    window = float(result.time_s[mask][-1] - result.time_s[mask][0])
 
     def series(name):
         return ch[name][member, mask]
 
+    impacts = _events_in_window(series('impacts_so_far'))
+    lift_offs = _events_in_window(series('lift_offs_so_far'))
     return {
-        'window_s': float(result.time_s[mask][-1] - result.time_s[mask][0]),
+        'window_s': window,
         'rop_m_per_s': kpi.describe(series('rop_m_per_s')),
         'bit_speed_rad_per_s': kpi.describe(series('bit_speed_rad_per_s')),
         'weight_on_bit_n': kpi.describe(series('weight_on_bit_n')),
@@ -24,8 +27,10 @@ def summarize(result: SimulationResult, window_s: float, bit_diameter_m: float,
         'mse_pa': float(kpi.mechanical_specific_energy(
             series('weight_on_bit_n'), series('torque_on_bit_nm'),
             series('bit_speed_rad_per_s'), series('rop_m_per_s'), bit_diameter_m)),
-        'impact_count': _events_in_window(series('impacts_so_far')),
-        'lift_off_count': _events_in_window(series('lift_offs_so_far')),
+        'impact_count': impacts,
+        'lift_off_count': lift_offs,
+        'impact_rate_per_s': _rate(impacts, window),
+        'lift_off_rate_per_s': _rate(lift_offs, window),
         'landing_count': _events_in_window(series('landings_so_far')),
         'impact_count_whole_run': int(result.impact_count[member]),
         'lift_off_count_whole_run': int(result.lift_off_count[member]),
@@ -36,5 +41,10 @@ def summarize(result: SimulationResult, window_s: float, bit_diameter_m: float,
 
 
 def _events_in_window(running_count) -> int:
-    """Events counted at every step that happened inside the window."""
+    """Events (episodes: dynamics/contact_events.py) that started inside the window."""
     return int(running_count[-1] - running_count[0])
+
+
+def _rate(count: int, window_s: float) -> float:
+    """Events per second in the window (0 for a window of one sample)."""
+    return float(count / window_s) if window_s > 0 else 0.0

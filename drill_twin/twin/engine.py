@@ -267,20 +267,30 @@ class TwinEngine:
         self._ensemble_latest = latest
 
     def _watch(self, before, now) -> None:
-        """Events of the mean model between two steps' force evaluations."""
-        x = self.simulator.system.model.mesh.node_x_m
+        """Events of the mean model between two steps' force evaluations.
+
+        Wall contact: one 'impact' per contact episode of a node (it opens when the node
+        penetrates the wall; dynamics/contact_events.py), with the node's depth and the force
+        of its first step, and one 'contact_end' when the episode closes (the node is more
+        than the hysteresis away from the wall), with the episode's peak force, peak
+        penetration and duration: a node rubbing or chattering on the wall is one event.
+        """
         t = self.time_s
-        contact_before, contact_now = before.contact.in_contact[0], now.contact.in_contact[0]
+        episodes = self.simulator.contact_episodes
         force = now.contact.radial_force_n[0]
-        for node in np.flatnonzero(contact_now & ~contact_before):
+        for event in (e for e in episodes.opened if e.member == 0):
             self._events.append(TwinEvent(
-                'impact', 'warn', t, f'borehole impact at x = {x[node]:.1f} m, '
-                f'force {force[node]:.3g} N',
-                {'x_m': f'{x[node]:.3f}', 'force_n': f'{force[node]:.6g}'}))
-        for node in np.flatnonzero(contact_before & ~contact_now):
-            self._events.append(TwinEvent('contact_end', 'info', t,
-                                          f'contact at x = {x[node]:.1f} m ended',
-                                          {'x_m': f'{x[node]:.3f}'}))
+                'impact', 'warn', t, f'borehole impact at x = {event.depth_m:.1f} m, '
+                f'force {force[event.node]:.3g} N',
+                {'x_m': f'{event.depth_m:.3f}', 'force_n': f'{force[event.node]:.6g}'}))
+        for event in (e for e in episodes.closed if e.member == 0):
+            duration = event.end_s - event.start_s
+            self._events.append(TwinEvent(
+                'contact_end', 'info', t, f'contact at x = {event.depth_m:.1f} m ended after '
+                f'{duration:.3g} s, peak force {event.peak_force_n:.3g} N',
+                {'x_m': f'{event.depth_m:.3f}', 'peak_force_n': f'{event.peak_force_n:.6g}',
+                 'peak_penetration_m': f'{event.peak_penetration_m:.6g}',
+                 'duration_s': f'{duration:.6g}'}))
         on_bottom = bool(self.simulator.on_bottom()[0])
         if on_bottom != self._on_bottom:
             hole = float(self.simulator.hole_depth_m[0])

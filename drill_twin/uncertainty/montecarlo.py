@@ -15,7 +15,7 @@ by rounding.
 Each chunk returns, per realization: the stationary-window series of ROP, bit speed, WOB,
 TOB and the radial displacement at the study's station; the time integral of ||U||^2 over
 the whole run (U the full DOF vector from the prestressed state, with the driven rotation:
-Eq. 54); the impacts and lift-offs counted at every step.
+Eq. 54); the impacts and lift-offs (episodes, Simulator.impact_count).
 """
 from __future__ import annotations
 
