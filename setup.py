@@ -25,6 +25,7 @@ setup(
         'PyYAML>=6.0',
         'matplotlib>=3.7',
         'mcap>=1.1',
+        'zstandard>=0.21',
         'mcap-ros2-support>=0.5',
         'rerun-sdk>=0.41',
         'dask[distributed]>=2024.1',
@@ -36,7 +37,7 @@ setup(
         # they come from PyPI's ROS wheels.
         'ros': ['ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces'],
         'test': ['pytest>=7', 'pytest-timeout', 'sympy>=1.12', 'wheel', 'pandas', 'hypothesis>=6',
-                 'rosbags>=0.10'],
+                 'rosbags>=0.10', 'flake8>=7', 'flake8-docstrings>=1.7', 'pydocstyle>=6.3'],
     },
     zip_safe=True,
     maintainer='drill_twin developers',

@@ -1,4 +1,5 @@
-"""The twin's ROS interface: topic names, message types, joint names and QoS.
+"""
+The twin's ROS interface: topic names, message types, joint names and QoS.
 
 This module imports nothing from ROS so that the recorder, the viewer, the tests and the
 documentation share one definition with the node.
@@ -13,6 +14,7 @@ Sign conventions at the boundary (SI units):
 from __future__ import annotations
 
 from dataclasses import dataclass
+import re
 
 NODE_NAME = 'drill_twin'
 NAMESPACE_PREFIX = '/drill_twin'
@@ -37,6 +39,8 @@ ENSEMBLE_LOWER = '/drill_twin/ensemble/bit_state/lower'      # 2.5 % quantile, J
 ENSEMBLE_UPPER = '/drill_twin/ensemble/bit_state/upper'      # 97.5 % quantile, JointState
 DIAGNOSTICS = '/diagnostics'                                 # diagnostic_msgs/msg/DiagnosticArray
 CLOCK = '/clock'                                             # rosgraph_msgs/msg/Clock
+TF = '/tf'                                                   # tf2_msgs/msg/TFMessage
+TF_STATIC = '/tf_static'                                     # tf2_msgs/msg/TFMessage
 ROSOUT = '/rosout'                                           # rcl_interfaces/msg/Log
 
 # Joints of the JointState messages
@@ -45,13 +49,44 @@ BIT_ROTATION = 'bit_rotation'  # position = angle (rad), velocity = speed (rad/s
 TOP_DRIVE = 'top_drive'        # position = angle (rad), velocity = speed, effort = torque (N m)
 HOOK = 'hook'                  # position = block travel (m), velocity (m/s), effort = load (N)
 
+# TF frames (REP-103/105; docs/ROS-INTERFACE.md, "Frames"). The rig frame is a world frame
+# (x east, y north, z up) at the top's initial position; the hole frame has the same origin and
+# x down along the hole (the paper's x: depth), y = the rig's y, z = the rig's x (the paper's
+# lateral v and w). The top moves with the top's axial displacement and the bit with its depth
+# (both along the hole frame's x); the stations sit on the string at their distance below the
+# top. Frames have the hole frame's orientation (spin angles are in the joint states).
+FRAME_RIG = 'drill_twin/rig'
+FRAME_HOLE = 'drill_twin/hole'
 FRAME_BIT = 'drill_twin/bit'
 FRAME_TOP = 'drill_twin/top'
+HOLE_IN_RIG_QUATERNION = (0.0, 0.5 ** 0.5, 0.0, 0.5 ** 0.5)
+"""(x, y, z, w) of the hole frame in the rig frame: +90 degrees about y, x turned down."""
 
 
 def station_name(x_m: float) -> str:
     """Topic-safe name of a measurement station at depth x, e.g. 700.0 -> 'x700m'."""
     return f'x{x_m:.0f}m' if abs(x_m - round(x_m)) < 1e-9 else f'x{x_m:.2f}m'.replace('.', 'p')
+
+
+def station_label(x_m: float) -> str:
+    """Human label of a station for views and tables, e.g. 700.0 -> '700 m'."""
+    return f'{x_m:g} m'
+
+
+_STATION_DISPLACEMENT = re.compile(r'^/drill_twin/vibration/x(\d+)(?:p(\d+))?m/displacement$')
+
+
+def station_from_topic(topic: str) -> float | None:
+    """
+    Return the depth (m) of the station whose displacement topic this is.
+
+    The inverse of :func:`vibration_displacement_topic`; None for any other topic.
+    """
+    match = _STATION_DISPLACEMENT.match(topic)
+    if match is None:
+        return None
+    whole, fraction = match.groups()
+    return float(f'{whole}.{fraction}' if fraction else whole)
 
 
 def vibration_imu_topic(x_m: float) -> str:
@@ -91,3 +126,12 @@ one tick overflows the queue, and those are counted as dropped from the gaps in 
 publisher's sequence numbers."""
 DIAGNOSTICS_QOS = QosSpec()
 CLOCK_QOS = QosSpec(reliability='best_effort', depth=1)
+"""/clock as the twin publishes it (fast mode) and subscribes to it (use_sim_time): best
+effort, so that a subscription matches reliable and best-effort clock publishers alike."""
+TF_QOS = QosSpec(depth=100)
+"""/tf as tf2's broadcaster offers it: reliable, volatile, keep last 100."""
+TF_STATIC_QOS = QosSpec(durability='transient_local', depth=1)
+"""/tf_static as tf2's static broadcaster offers it: reliable, transient local, keep last 1."""
+CONTACT_FORCES_LABEL = 'node'
+"""Label of the one dimension of /drill_twin/contact/forces: the finite-element nodes from the
+top (x = 0) to the bit; their depths are in docs/ROS-INTERFACE.md."""

@@ -1,6 +1,9 @@
-"""Twin logs as rosbag2 bags: time-bounded MCAP splits and metadata.yaml, read back by the
-project's reader and by three independent ones (mcap, mcap_ros2, rosbags), also after the
-writer was killed; ``drill-twin recover``; the run description as one dataclass."""
+"""Twin logs as rosbag2 bags.
+
+Time-bounded MCAP splits and metadata.yaml, read back by the project's reader and by three
+independent ones (mcap, mcap_ros2, rosbags), also after the writer was killed; ``drill-twin
+recover``; the run description as one dataclass.
+"""
 from __future__ import annotations
 
 import os
@@ -23,7 +26,7 @@ from drill_twin.recording.bag_writer import BagWriter
 from drill_twin.recording.log_metadata import (LogMetadataError, RECORD_NAME,
                                                TwinLogMetadata)
 from drill_twin.recording.schemas import type_hash
-from drill_twin.recording.synthetic import synthetic_messages
+from synthetic import synthetic_messages
 from drill_twin.recording.topics import twin_topics
 
 STATIONS_M = (700.0, 1590.0)
@@ -43,7 +46,10 @@ def child_env(tmp_path: Path) -> dict:
 
 @pytest.fixture(scope='module')
 def bag(tmp_path_factory):
-    """A bag of every twin topic over 3.5 s split every second: (path, expected messages)."""
+    """Write a bag of every twin topic over 3.5 s split every second.
+
+    Returns (path, expected messages).
+    """
     path = tmp_path_factory.mktemp('bags') / 'drill_twin_test'
     expected = []
     with BagWriter(path, split_duration_s=SPLIT_S, chunk_size=4096) as writer:
@@ -149,8 +155,10 @@ time.sleep(600)            # killed here, the last 30 messages in an open chunk
 
 @pytest.fixture(scope='module')
 def killed_bag(tmp_path_factory):
-    """A bag whose writer (zstd chunks) was SIGKILLed mid-split after 3 complete splits:
-    (path, messages known flushed)."""
+    """Kill a bag's writer (zstd chunks) mid-split after 3 complete splits.
+
+    Returns (path, messages known flushed).
+    """
     folder = tmp_path_factory.mktemp('killed')
     path = folder / 'killed_bag'
     process = subprocess.Popen([sys.executable, '-c', KILLED_BAG_WRITER, str(path)],

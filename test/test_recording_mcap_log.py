@@ -8,6 +8,7 @@ import time
 from types import SimpleNamespace
 
 from mcap.reader import make_reader, NonSeekingReader
+import numpy as np
 from mcap_ros2.reader import read_ros2_messages
 import pytest
 import yaml
@@ -19,7 +20,7 @@ from drill_twin.recording.mcap_log import McapLog
 from drill_twin.recording.message_types import import_message_class
 from drill_twin.recording.recovery import recover_log
 from drill_twin.recording.schemas import ros2msg_schema, type_hash
-from drill_twin.recording.synthetic import synthetic_messages
+from synthetic import synthetic_messages
 from drill_twin.recording.topics import twin_topics
 
 STATIONS_M = (700.0, 1250.5)
@@ -227,8 +228,11 @@ def test_serialized_write_matches(tmp_path):
 
 
 def test_chunks_are_flushed_by_log_time_however_fast_the_writer(tmp_path):
-    """A twin far faster than real time: one chunk per flush interval of log time, written
-    within microseconds of wall time (so the wall clock alone would never flush)."""
+    """A twin far faster than real time.
+
+    One chunk per flush interval of log time, written within microseconds of wall time (so the
+    wall clock alone would never flush).
+    """
     from std_msgs.msg import Float64
 
     path = tmp_path / 'fast.mcap'
@@ -306,7 +310,7 @@ def test_importing_the_recording_layer_does_not_import_rclpy(tmp_path):
     code = ('import sys\n'
             'import drill_twin.recording.mcap_log, drill_twin.recording.reader\n'
             'import drill_twin.recording.rerun_view, drill_twin.recording.recovery\n'
-            'import drill_twin.recording.synthetic, drill_twin.recording.topics\n'
+            'import drill_twin.recording.topics\n'
             'assert "rclpy" not in sys.modules, "rclpy imported"\n'
             'assert "rerun" not in sys.modules, "rerun imported"\n')
     subprocess.run([sys.executable, '-c', code], check=True, env=child_env(tmp_path))
@@ -340,3 +344,30 @@ def test_compressed_chunks_and_their_cut_prefix(tmp_path, compression):
     cut.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
     values = [m.message.data for m in reader.iter_messages(cut)]
     assert 0 < len(values) < 2000 and values == [float(i) for i in range(len(values))]
+
+
+def test_chunks_are_compressed_at_the_chosen_zstd_level(tmp_path):
+    """Each zstd chunk is the frame zstd makes of its records at ZSTD_LEVEL (not mcap's level 3).
+
+    The stand-in for mcap.writer's zstandard module is in effect.
+    """
+    import zstandard
+    from mcap.records import Chunk
+    from drill_twin.recording.mcap_log import ZSTD_LEVEL
+
+    path = tmp_path / 'level.mcap'
+    rng = np.random.default_rng(5)
+    with McapLog(path, chunk_size=64 * 1024) as log:
+        log.add_topic(itf.KPI_MSE, 'std_msgs/msg/Float64')
+        for i, value in enumerate(np.cumsum(rng.normal(size=6000))):
+            log.write(itf.KPI_MSE, float64(float(value)), i)
+    chunks = [r for r in reader.iter_records(path, emit_chunks=True) if isinstance(r, Chunk)]
+    assert chunks and all(c.compression == 'zstd' for c in chunks)
+    sizes = {level: 0 for level in (3, ZSTD_LEVEL)}
+    for chunk in chunks:
+        raw = zstandard.ZstdDecompressor().decompress(chunk.data,
+                                                      max_output_size=chunk.uncompressed_size)
+        for level in sizes:
+            sizes[level] += len(zstandard.ZstdCompressor(level=level).compress(raw))
+    assert sizes[ZSTD_LEVEL] != sizes[3]               # the data tell the levels apart
+    assert sum(len(c.data) for c in chunks) == sizes[ZSTD_LEVEL]

@@ -23,7 +23,7 @@ from drill_twin.recording.rerun_native import (LogNotFound, geometry_of, log_fil
 from drill_twin.recording.rerun_view import (has_display, LOCALHOST, NO_DISPLAY_HINT,
                                              open_viewer, rerun_executable, save_rrd,
                                              viewer_command)
-from drill_twin.recording.synthetic import write_synthetic_log
+from synthetic import write_synthetic_log
 from drill_twin.recording.topics import twin_topics
 
 STATIONS_M = (600.0, 1200.0)
@@ -88,7 +88,7 @@ class Capture:
         pass
 
     def rows(self, entity, component='Scalars:scalars'):
-        """(times, values) of an entity over all its sends."""
+        """Return (times, values) of an entity over all its sends."""
         times = np.concatenate([t for t, _ in self.sent[entity]])
         values = [v for _, batch in self.sent[entity] for v in batch[component]]
         return times, values
@@ -200,8 +200,8 @@ def test_orbit_segments_and_wall():
     _, centres = rec.rows(f'{entity}/pipe', 'Ellipses2D:centers')
     _, sizes = rec.rows(f'{entity}/pipe', 'Ellipses2D:half_sizes')
     assert np.allclose(centres[1][0], [20.0, 10.0]) and np.allclose(sizes[0][0], [63.5, 63.5])
-    assert np.allclose(np.ravel(rec.rows(f'{entity}/radial')[1]), [10.0, math.hypot(20, 10),
-                                                                    30.0])
+    assert np.allclose(np.ravel(rec.rows(f'{entity}/radial')[1]),
+                       [10.0, math.hypot(20, 10), 30.0])
     assert np.allclose(np.ravel(rec.rows(f'{entity}/clearance')[1]), 86.5)
     layout.log_styles(rec, g)
     (wall,) = rec.static[f'{entity}/wall']

@@ -1,10 +1,12 @@
-"""The log fails mid-run for real: a full disk (a 256 KiB tmpfs mounted for the test, root
-only) or, everywhere, a file-size limit (RLIMIT_FSIZE: writes fail with EFBIG). Both
-``on_log_error`` policies: ``exit`` stops the twin with status 1, ``continue`` runs on
-without a log; either way an ERROR on /rosout and on /diagnostics says the log stopped, and
-the bag stays valid: every split it completed (2 s each on the tmpfs) is listed in its
-metadata.yaml and whole (rosbags reads them), the cut split is read to its last chunk (chunks
-are flushed every second of log time, so the cut split holds one however fast the twin).
+"""The log fails mid-run for real.
+
+A full disk (a 256 KiB tmpfs mounted for the test, root only) or, everywhere, a file-size limit
+(RLIMIT_FSIZE: writes fail with EFBIG). Both ``on_log_error`` policies: ``exit`` stops the twin
+with status 1, ``continue`` runs on without a log; either way an ERROR on /rosout and on
+/diagnostics says the log stopped, and the bag stays valid: every split it completed (2 s each
+on the tmpfs) is listed in its metadata.yaml and whole (rosbags reads them), the cut split is
+read to its last chunk (chunks are flushed every second of log time, so the cut split holds one
+however fast the twin).
 
 The twin and a probe run in a child process (the limit applies to it alone); the child
 prints what the probe heard as JSON.
@@ -37,16 +39,16 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import Log
 from rclpy.executors import SingleThreadedExecutor
-from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
-from drill_twin.ros.twin_node import TwinNode
+from drill_twin.ros.parameters import TwinParameters
+from drill_twin.ros.twin_node import create_twin_node
 
 log_dir, policy, split_s = sys.argv[1], sys.argv[2], float(sys.argv[3])
 rclpy.init()
-node = TwinNode(parameter_overrides=[Parameter(k, value=v) for k, v in {
-    'fast': True, 'log_dir': log_dir, 'on_log_error': policy, 'log_split_s': split_s,
-    'ensemble_members': 0, 'duration_s': 5.0}.items()])
+node = create_twin_node(TwinParameters(
+    fast=True, log_dir=log_dir, on_log_error=policy, log_split_s=split_s,
+    ensemble_members=0, duration_s=5.0))
 probe = rclpy.create_node('probe')
 heard = {'diagnostics': [], 'rosout': [], 'last_bit_stamp_ns': -1}
 deep = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE)
@@ -101,8 +103,10 @@ def env(tmp_path_factory):
 
 @contextlib.contextmanager
 def full_disk(medium: str, folder: Path):
-    """(log directory, preexec_fn): a small tmpfs, or a plain directory and a file-size
-    limit for the child."""
+    """(log directory, preexec_fn).
+
+    A small tmpfs, or a plain directory and a file-size limit for the child.
+    """
     if medium == 'rlimit':
         def limit():
             resource.setrlimit(resource.RLIMIT_FSIZE, (FILE_BYTES, FILE_BYTES))
@@ -125,8 +129,11 @@ SPLIT_S = {'tmpfs': 2.0, 'rlimit': 300.0}     # per-file limit: no split could b
 
 
 def check_bag(log_dir: Path, medium: str) -> None:
-    """The bag left behind: its metadata.yaml opens in rosbags and lists only whole splits
-    (at least one on the tmpfs); the project's reader also reads the cut split's prefix."""
+    """Check the bag left behind.
+
+    Its metadata.yaml opens in rosbags and lists only whole splits (at least one on the tmpfs);
+    the project's reader also reads the cut split's prefix.
+    """
     from rosbags.highlevel import AnyReader
 
     (bag,) = [p for p in log_dir.iterdir() if p.is_dir()]
@@ -143,8 +150,11 @@ def check_bag(log_dir: Path, medium: str) -> None:
 @pytest.mark.parametrize('medium, policy', [('tmpfs', 'exit'), ('tmpfs', 'continue'),
                                             ('rlimit', 'exit')])
 def test_log_failure_is_reported_and_obeyed(env, tmp_path, medium, policy):
-    """(A file-size limit with on_log_error: continue is test_ros_twin_log's
-    test_log_write_failure_mid_run.)"""
+    """Fail the log mid-run and check what the twin and its bag do.
+
+    (A file-size limit with on_log_error: continue is test_ros_twin_log's
+    test_log_write_failure_mid_run.)
+    """
     with full_disk(medium, tmp_path / 'disk') as (log_dir, preexec):
         result = subprocess.run([sys.executable, '-c', TWIN_AND_PROBE, str(log_dir), policy,
                                  str(SPLIT_S[medium])],

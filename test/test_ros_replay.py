@@ -1,5 +1,8 @@
-"""Replay of twin logs: republishing with timing, re-simulation on the recorded commands, and
-the rerun view. Real rclpy over FastDDS, real MCAP files, the real rerun loader."""
+"""Replay of twin logs.
+
+Republishing with timing, re-simulation on the recorded commands, and the rerun view. Real rclpy
+over FastDDS, real MCAP files, the real rerun loader.
+"""
 from __future__ import annotations
 
 import os
@@ -16,7 +19,7 @@ DOMAIN_ID = random.Random(os.getpid()).randint(120, 200)   # apart from the node
 
 @pytest.fixture(scope='module')
 def ros(tmp_path_factory):
-    """An rclpy context isolated on its own domain, localhost only."""
+    """Give an rclpy context isolated on its own domain, localhost only."""
     with ros_environment(tmp_path_factory.mktemp('ros'), DOMAIN_ID):
         import rclpy
 
@@ -34,23 +37,24 @@ def _spin_until(executor, condition, timeout_s):
 
 @pytest.fixture(scope='module')
 def twin_log(ros, tmp_path_factory):
-    """A fast twin run with commands sent over DDS mid-run, its log split every 2 s of twin
-    time; returns the log (the bag directory)."""
+    """Run a fast twin with commands sent over DDS mid-run, its log split every 2 s.
+
+    Returns the log (the bag directory).
+    """
     from rclpy.executors import SingleThreadedExecutor
-    from rclpy.parameter import Parameter
     from std_msgs.msg import Float64
     from threadpoolctl import threadpool_limits
 
     from drill_twin import interface as itf
     from drill_twin.recording.qos import rclpy_qos_profile
-    from drill_twin.ros.twin_node import TwinNode
+    from drill_twin.ros.parameters import TwinParameters
+    from drill_twin.ros.twin_node import create_twin_node
 
     folder = tmp_path_factory.mktemp('logs')
     with threadpool_limits(limits=1, user_api='blas'):
-        node = TwinNode(parameter_overrides=[
-            Parameter('fast', value=True), Parameter('log_dir', value=str(folder)),
-            Parameter('ensemble_members', value=3), Parameter('seed', value=11),
-            Parameter('duration_s', value=4.0), Parameter('log_split_s', value=2.0)])
+        node = create_twin_node(TwinParameters(
+            fast=True, log_dir=str(folder), ensemble_members=3, seed=11, duration_s=4.0,
+            log_split_s=2.0))
         probe = ros.create_node('probe')
         qos = rclpy_qos_profile(itf.STATE_QOS)
         speed = probe.create_publisher(Float64, itf.CMD_TOP_DRIVE_SPEED, qos)
@@ -78,11 +82,14 @@ def twin_log(ros, tmp_path_factory):
 
 
 def test_resimulation_reproduces_the_recorded_run(twin_log):
-    from drill_twin.twin.resimulate import resimulate
+    from drill_twin.recording.resimulate import resimulate
 
-    result = resimulate(twin_log)
+    calls = []
+    result = resimulate(twin_log, progress=lambda done, total: calls.append((done, total)))
     assert result.commands == 3
     assert result.compared == 400                      # 4 s at 100 Hz
+    # Progress in simulated seconds: from 0 to the whole 4 s, every 1000 steps and at the end.
+    assert calls[0] == (0.0, 4.0) and calls[-1] == (4.0, 4.0) and len(calls) == 2
     # mean, lower and upper at 10 Hz (ticks 10, 20, ..., 400, stamped a tick behind): the
     # worker process's ensemble of the node against this process's
     assert result.ensemble_compared == 3 * 40
@@ -102,7 +109,7 @@ def test_resimulate_command(twin_log):
 def test_resimulate_the_first_split_alone(twin_log):
     """One split file is a log too: its 2 s are reproduced from the metadata it carries."""
     from drill_twin.recording.reader import log_files
-    from drill_twin.twin.resimulate import resimulate
+    from drill_twin.recording.resimulate import resimulate
 
     first = log_files(twin_log)[0]
     result = resimulate(first)
@@ -110,7 +117,7 @@ def test_resimulate_the_first_split_alone(twin_log):
 
 
 def _altered_log(twin_log, path, config_change=None, seed_change=0):
-    """A one-file copy of ``twin_log`` whose recorded configuration or seed is altered."""
+    """Copy ``twin_log`` to one file whose recorded configuration or seed is altered."""
     import dataclasses
 
     import yaml
@@ -137,7 +144,7 @@ def _altered_log(twin_log, path, config_change=None, seed_change=0):
 
 def test_resimulation_detects_a_different_model(twin_log, tmp_path):
     """A log whose model differs from its recorded configuration is not reproduced."""
-    from drill_twin.twin.resimulate import resimulate
+    from drill_twin.recording.resimulate import resimulate
 
     def stiffer_cutting_torque(config):
         config['bit_rock']['a5_n_m'] *= 1.01
@@ -150,7 +157,7 @@ def test_resimulation_detects_a_different_model(twin_log, tmp_path):
 
 def test_resimulation_detects_a_different_seed(twin_log, tmp_path):
     """Another seed draws other germs: the mean model is reproduced, the ensemble is not."""
-    from drill_twin.twin.resimulate import resimulate
+    from drill_twin.recording.resimulate import resimulate
 
     result = resimulate(_altered_log(twin_log, tmp_path / 'reseeded.mcap', seed_change=1))
     assert all(value == 0.0 for value in result.max_difference.values())

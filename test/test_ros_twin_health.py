@@ -28,10 +28,12 @@ def _health_after(twin, count: int, condition=lambda status: True, what='a healt
 
 
 def test_health_tells_the_truth(twin_factory):  # noqa: F811
-    """OK only while nothing goes wrong; a rejected command makes the next report WARN; a
-    mean model breaking a physical bound (3 MN let past the door) makes it ERROR, held in
-    the report after too, with every reason in the status itself; then OK again. Nothing
-    implausible is published meanwhile."""
+    """OK only while nothing goes wrong.
+
+    A rejected command makes the next report WARN; a mean model breaking a physical bound (3 MN
+    let past the door) makes it ERROR, held in the report after too, with every reason in the
+    status itself; then OK again. Nothing implausible is published meanwhile.
+    """
     from diagnostic_msgs.msg import DiagnosticStatus
 
     twin = twin_factory(ensemble_members=0, health_rate_hz=20.0, log_enabled=False)
@@ -66,8 +68,10 @@ def test_health_tells_the_truth(twin_factory):  # noqa: F811
 
 
 def test_health_comes_while_the_twin_clock_stands_still(twin_factory):  # noqa: F811
-    """Health has a wall-clock timer of its own: with the tick timer stopped (the twin's
-    clock stands still) reports still come, and say so."""
+    """Health has a wall-clock timer of its own.
+
+    With the tick timer stopped (the twin's clock stands still) reports still come, and say so.
+    """
     from diagnostic_msgs.msg import DiagnosticStatus
 
     twin = twin_factory(ensemble_members=0, health_rate_hz=10.0, log_enabled=False)
@@ -82,8 +86,11 @@ def test_health_comes_while_the_twin_clock_stands_still(twin_factory):  # noqa: 
 
 
 def test_the_real_time_twin_never_runs_ahead_of_the_wall_clock(twin_factory):  # noqa: F811
-    """Steps of 50 ms at 100 Hz ticks: each step is taken when the wall clock reaches it,
-    so no stamp is ever later than the ROS time at which the probe hears it."""
+    """Steps of 50 ms at 100 Hz ticks.
+
+    Each step is taken when the wall clock reaches it, so no stamp is ever later than the ROS
+    time at which the probe hears it.
+    """
     from sensor_msgs.msg import JointState
 
     twin = twin_factory(fast=False, ensemble_members=0, time_step_s=0.05, rate_hz=100.0,
@@ -100,11 +107,14 @@ def test_the_real_time_twin_never_runs_ahead_of_the_wall_clock(twin_factory):  #
 
 
 def test_commands_are_counted_dropped_and_superseded(twin_factory):  # noqa: F811
-    """One command, heard; then 3000 in a burst while the twin does not spin: its queue
-    (keep last 1000) keeps the last 1000, the gap in the publisher's sequence numbers counts
-    the others as dropped; of those taken between two ticks only the last takes effect, the
-    rest are superseded (real time: 100 ticks a second, the commands are taken much faster).
-    Health reports every count and WARNs of the drops."""
+    """One command, heard.
+
+    Then 3000 in a burst while the twin does not spin: its queue (keep last 1000) keeps the last
+    1000, the gap in the publisher's sequence numbers counts the others as dropped; of those
+    taken between two ticks only the last takes effect, the rest are superseded (real time: 100
+    ticks a second, the commands are taken much faster). Health reports every count and WARNs of
+    the drops.
+    """
     from diagnostic_msgs.msg import DiagnosticStatus
 
     twin = twin_factory(ensemble_members=0, health_rate_hz=20.0, log_enabled=False, fast=False)
@@ -132,10 +142,13 @@ def test_commands_are_counted_dropped_and_superseded(twin_factory):  # noqa: F81
 
 
 def test_the_stop_future_does_not_collect_callbacks(ros):  # noqa: F811
-    """The node's ``done`` future awaited by Executor.spin_until_future_complete (as
+    """The stop future keeps one wake-up callback however long it is awaited.
+
+    The node's ``done`` future awaited by Executor.spin_until_future_complete (as
     ``drill-twin twin`` does) for 300 turns keeps one wake-up callback, not one per turn,
     per waiting function (rclpy 7.1 adds a fresh one every turn: the node's memory grew
-    1.2 MB/min)."""
+    1.2 MB/min).
+    """
     from rclpy.executors import SingleThreadedExecutor
 
     from drill_twin.ros.twin_node import StopFuture

@@ -1,6 +1,7 @@
-"""``drill-twin twin`` and the ``ros2 run`` launcher as processes: exit statuses, error lines,
-and the log they leave, a rosbag2 bag (complete after duration_s, SIGTERM and SIGINT; read by
-the project's reader and by rosbags).
+"""``drill-twin twin`` and the ``ros2 run`` launcher as processes.
+
+Exit statuses, error lines, and the log they leave, a rosbag2 bag (complete after duration_s,
+SIGTERM and SIGINT; read by the project's reader and by rosbags).
 
 Each process runs on a random ROS domain, localhost only, with its ROS and rerun files in a
 temporary directory. Waits are loops on conditions with generous deadlines.
@@ -39,7 +40,7 @@ def run(command: list[str], env: dict, timeout_s: float = WAIT_S) -> subprocess.
 
 
 def the_log(folder: Path) -> Path:
-    """The one bag directory in ``folder``."""
+    """Return the one bag directory in ``folder``."""
     logs = list(folder.iterdir())
     assert len(logs) == 1 and logs[0].is_dir(), logs
     assert re.fullmatch(r'drill_twin_\d{8}T\d{6}Z', logs[0].name), logs[0].name
@@ -68,7 +69,7 @@ def bit_stamps_readable(path: Path) -> list[int]:
 
 
 def assert_complete_fast_run(path: Path, duration_s: float) -> None:
-    """A complete, readable log of a fast run: the twin clock from 0 to duration_s."""
+    """Check a complete, readable log of a fast run: the twin clock from 0 to duration_s."""
     assert reader.is_complete(path)
     stamps = bit_stamps(path)
     assert stamps == list(range(10_000_000, int(duration_s * 1e9) + 1, 10_000_000))
@@ -121,10 +122,12 @@ def test_unwritable_log_dir_with_on_log_error_exit(env, tmp_path):
 
 
 def test_log_write_failure_mid_run(env, tmp_path):
-    """The log hits the file-size limit (as a full disk would) after ~0.7 s: with
-    on_log_error: continue the twin runs to the end, says so once as an ERROR through its ROS
-    logger (so on /rosout), and leaves its bag readable. (Python ignores SIGXFSZ, so the
-    write raises EFBIG.) test_ros_log_failure checks /diagnostics and on_log_error: exit."""
+    """The log hits the file-size limit (as a full disk would) after ~0.7 s.
+
+    With on_log_error: continue the twin runs to the end, says so once as an ERROR through its
+    ROS logger (so on /rosout), and leaves its bag readable. (Python ignores SIGXFSZ, so the
+    write raises EFBIG.) test_ros_log_failure checks /diagnostics and on_log_error: exit.
+    """
     limit = 40_000                  # zstd chunks: about 45 kB a second of twin time
 
     def limit_file_size():
@@ -185,10 +188,12 @@ def _group_alive(group: int) -> bool:
     (signal.SIGTERM, False), (signal.SIGINT, False), (signal.SIGINT, True)],
     ids=['SIGTERM', 'SIGINT', 'SIGINT-to-the-process-group'])
 def test_signal_completes_the_log(env, tmp_path, signal_number, to_group):
-    """Real time (100 Hz), stopped by a signal once its log holds messages: exit status 0,
-    no traceback, and a complete log stamped with the ROS time of the run. A Ctrl-C in a
-    terminal signals the whole process group, the ensemble worker too: it leaves the stopping
-    to the node, and no process of the group outlives the node."""
+    """Real time (100 Hz), stopped by a signal once its log holds messages.
+
+    Exit status 0, no traceback, and a complete log stamped with the ROS time of the run. A
+    Ctrl-C in a terminal signals the whole process group, the ensemble worker too: it leaves the
+    stopping to the node, and no process of the group outlives the node.
+    """
     logs = tmp_path / 'logs'
     stderr_path = tmp_path / 'stderr.txt'
     started_ns = time.time_ns()
@@ -240,7 +245,7 @@ def test_signal_completes_the_log(env, tmp_path, signal_number, to_group):
 SIGNAL_WHILE_STARTING = '''
 import os, signal, sys, time
 import rclpy
-from drill_twin.ros import twin_node
+from drill_twin.ros import build, twin_node
 
 where, name, log_dir = sys.argv[1:4]
 
@@ -257,7 +262,7 @@ def interrupted(function):
 
 
 if where == 'model':            # before anything of ROS is made but the node itself
-    twin_node.load_config = interrupted(twin_node.load_config)
+    build.load_config = interrupted(build.load_config)
 else:                           # after the log is opened
     twin_node.TwinNode.create_timer = interrupted(twin_node.TwinNode.create_timer)
 sys.exit(twin_node.run(['drill-twin', '--ros-args', '-p', f'log_dir:={log_dir}',
@@ -268,8 +273,11 @@ sys.exit(twin_node.run(['drill-twin', '--ros-args', '-p', f'log_dir:={log_dir}',
 @pytest.mark.parametrize('where', ['model', 'timer'])
 @pytest.mark.parametrize('name', ['SIGTERM', 'SIGINT'])
 def test_signal_while_starting(env, tmp_path, where, name):
-    """A signal between rclpy.init and the first spin (the moment chosen by wrapping one
-    call of the node's set-up): exit status 0, no traceback, no unfinished log."""
+    """A signal between rclpy.init and the first spin stops the twin cleanly.
+
+    The moment is chosen by wrapping one call of the node's set-up: exit status 0, no
+    traceback, no unfinished log.
+    """
     script = tmp_path / 'signal_while_starting.py'
     script.write_text(SIGNAL_WHILE_STARTING)
     logs = tmp_path / 'logs'

@@ -33,7 +33,7 @@ DOMAIN_ID = random.SystemRandom().randint(1, 101)
 
 @pytest.fixture(scope='module')
 def ros(tmp_path_factory):
-    """rclpy initialised on a random domain, localhost only, logs and rerun ids in tmp.
+    """Initialise rclpy on a random domain, localhost only, logs and rerun ids in tmp.
 
     BLAS is single-threaded as in ``drill_twin.ros.twin_node.run`` (set after the model's
     libraries are loaded, or threadpoolctl cannot see them).
@@ -73,12 +73,14 @@ class Twin:
         from std_msgs.msg import Float64
 
         from drill_twin.recording.qos import rclpy_qos_profile
-        from drill_twin.ros.twin_node import TwinNode
+        from drill_twin.ros.parameters import TwinParameters
+        from drill_twin.ros.twin_node import create_twin_node
 
         values = {'fast': True, 'log_dir': str(log_dir), 'ensemble_members': 4, 'seed': 3,
                   **parameters}
-        self.node = TwinNode(parameter_overrides=[Parameter(k, value=v)
-                                                  for k, v in values.items()])
+        ros_only = {name: values.pop(name) for name in ('use_sim_time',) if name in values}
+        self.node = create_twin_node(TwinParameters.from_values(values), parameter_overrides=[
+            Parameter(k, value=v) for k, v in ros_only.items()])
         self.probe = rclpy.create_node('twin_probe')
         self.received = defaultdict(list)
         deep = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE)
@@ -102,8 +104,10 @@ class Twin:
         self._wait_for_discovery()
 
     def _wait_for_discovery(self) -> None:
-        """Wait (without spinning, so the twin has not ticked yet) until both ends of every
-        twin topic and command are matched."""
+        """Wait until both ends of every twin topic and command are matched.
+
+        Without spinning, so the twin has not ticked yet.
+        """
         ends = ([s.get_publisher_count for s in self._subscriptions]
                 + [self.node._outputs[s.topic_name].get_subscription_count
                    for s in self._subscriptions]
@@ -141,7 +145,7 @@ class Twin:
                 if name is None or s.name == name]
 
     def rosout(self, level: int | None = None, containing: str = ''):
-        """The twin's /rosout records (optionally of one level, containing some text)."""
+        """Return the twin's /rosout records (optionally of one level, containing a text)."""
         return [m for m in self.received[itf.ROSOUT]
                 if m.name == itf.NODE_NAME and (level is None or m.level == level)
                 and containing in m.msg]
@@ -183,8 +187,10 @@ HOOK_STEP_N = -10e3
 
 @pytest.fixture(scope='module')
 def recorded(ros, tmp_path_factory):
-    """A 3 s fast run (4 members) heard by the probe and logged, with a valid speed and
-    hook-load command and one rejected command at about 1 s."""
+    """Run the twin fast for 3 s (4 members), heard by the probe and logged.
+
+    With a valid speed and hook-load command and one rejected command at about 1 s.
+    """
     folder = tmp_path_factory.mktemp('recorded')
     twin = Twin(folder / 'logs', duration_s=DURATION_S, seed=5, health_rate_hz=5.0)
     try:
@@ -211,9 +217,11 @@ def recorded(ros, tmp_path_factory):
 # -- 1. commands -----------------------------------------------------------------------------
 
 def test_commands_move_the_bit(twin_factory):
-    """A top-drive speed of 10 rad/s and a hook load 30 kN lower, sent at about 0.2 s: the
-    top drive ramps at 2 rad/s^2 to 10 rad/s, the bit follows (its mean speed doubles), and
-    the mean WOB becomes more compressive by about the hook-load change."""
+    """A top-drive speed of 10 rad/s and a hook load 30 kN lower, sent at about 0.2 s.
+
+    The top drive ramps at 2 rad/s^2 to 10 rad/s, the bit follows (its mean speed doubles), and
+    the mean WOB becomes more compressive by about the hook-load change.
+    """
     twin = twin_factory()
     twin.spin_to(0.2)
     speed_0 = twin.received[itf.TOP_STATE][-1].velocity[0]
@@ -257,9 +265,12 @@ def _finite(values) -> bool:
 
 
 def test_the_twin_catches_up_with_the_wall_clock_after_a_stall(twin_factory):
-    """Real-time pacing: a tick held up for 0.3 s (a stall of the machine) makes the ROS timer
-    skip the periods it missed; the next ticks take one extra step each until the twin's
-    clock is back with the ROS clock, and the health status says it fell behind."""
+    """Real-time pacing.
+
+    A tick held up for 0.3 s (a stall of the machine) makes the ROS timer skip the periods it
+    missed; the next ticks take one extra step each until the twin's clock is back with the ROS
+    clock, and the health status says it fell behind.
+    """
     from diagnostic_msgs.msg import DiagnosticStatus
 
     twin = twin_factory(fast=False, ensemble_members=0, health_rate_hz=10.0)
@@ -315,8 +326,10 @@ def test_joint_states_are_well_formed(recorded):
 
 
 def test_stamps_follow_the_twin_clock(recorded):
-    """Every stamped topic carries the same stamps: 10 ms, 20 ms, ... up to the end of the
-    run, one per tick; /clock says the same times."""
+    """Every stamped topic carries the same stamps.
+
+    10 ms, 20 ms, ... up to the end of the run, one per tick; /clock says the same times.
+    """
     received, final_ns = recorded['received'], recorded['final_ns']
     expected = list(range(TICK_NS, final_ns + 1, TICK_NS))
     assert final_ns == int(DURATION_S * 1e9)
@@ -439,8 +452,8 @@ def test_bad_commands_are_rejected(twin_factory):
         status = twin.statuses('drill_twin: command rejected')[-1]
         values = {kv.key: kv.value for kv in status.values}
         assert status.level == DiagnosticStatus.WARN
-        assert values['command'] == what and float(values['value']) == pytest.approx(value,
-                                                                                    nan_ok=True)
+        assert values['command'] == what
+        assert float(values['value']) == pytest.approx(value, nan_ok=True)
         assert what in status.message and reason in status.message
         line = twin.rosout(Log.WARN, '/drill_twin/cmd/')[-1].msg
         assert line.startswith(f'{topic}: {what} command') and reason in line
@@ -530,11 +543,14 @@ def test_unsafe_and_invalid_parameters_are_refused(twin_factory):
 # -- 6. numerical divergence -----------------------------------------------------------------
 
 def test_divergence_is_reported_and_nothing_garbage_published(twin_factory):
-    """One Newton iteration with a tolerance of 1e-14: every step fails to converge. Each
-    failure restarts the batch from its safe state and retries (ERROR diagnostics and rosout);
-    as no step can ever succeed the node stops itself with an error after 100 failed steps
-    rather than let its clock stand still. Nothing non-finite is published meanwhile.
-    (Recovery from a transient divergence is tested on the engine: test_twin_engine.py.)"""
+    """One Newton iteration with a tolerance of 1e-14.
+
+    Every step fails to converge. Each failure restarts the batch from its safe state and
+    retries (ERROR diagnostics and rosout); as no step can ever succeed the node stops itself
+    with an error after 100 failed steps rather than let its clock stand still. Nothing
+    non-finite is published meanwhile. (Recovery from a transient divergence is tested on the
+    engine: test_twin_engine.py.)
+    """
     from diagnostic_msgs.msg import DiagnosticStatus
     from rcl_interfaces.msg import Log
 

@@ -1,4 +1,5 @@
-"""The running twin on a terminal: a status line once a second and a summary at exit.
+"""
+The running twin on a terminal: a status line once a second and a summary at exit.
 
 Pure formatting of :class:`~drill_twin.twin.engine.TwinSnapshot` figures (no ROS, no I/O
 except :class:`StatusPrinter`, which writes to the stream it is given)::
@@ -65,8 +66,12 @@ class RunTally:
 
 
 def status_line(snapshot, real_time_factor: float, events: Counter) -> str:
-    """One line: twin time, real-time factor, bit depth, bit and surface speed, ROP over the
-    KPI window, stick-slip severity, events so far."""
+    """
+    One line.
+
+    Twin time, real-time factor, bit depth, bit and surface speed, ROP over the KPI window,
+    stick-slip severity, events so far.
+    """
     bit = snapshot.bit
     surface = snapshot.observation.top_speed_rad_per_s * RPM_PER_RAD_PER_S
     return (f't {snapshot.time_s:.1f} s  RTF {_number(real_time_factor, 2)}  '
@@ -80,8 +85,11 @@ def status_line(snapshot, real_time_factor: float, events: Counter) -> str:
 
 def exit_summary(tally: RunTally, wall_s: float, *, log_path: str | None = None,
                  reason: str = 'stopped') -> str:
-    """Lines printed when the twin ends: time, mean real-time factor, drilled depth, events,
-    the log."""
+    """
+    Lines printed when the twin ends.
+
+    Time, mean real-time factor, drilled depth, events, the log.
+    """
     twin_s = tally.time_s - (tally.start_time_s or 0.0)
     factor = twin_s / wall_s if wall_s > 0 else math.nan
     lines = [f'drill_twin {reason} after {tally.time_s:.1f} s of twin time in {wall_s:.1f} s '
@@ -97,8 +105,10 @@ def exit_summary(tally: RunTally, wall_s: float, *, log_path: str | None = None,
 
 
 class StatusPrinter:
-    """Writes :func:`status_line` to ``stream`` at most once per ``interval_s`` of wall time:
-    on a terminal it rewrites one line in place, elsewhere it appends lines.
+    """
+    Writes :func:`status_line` to ``stream`` at most once per ``interval_s`` of wall time.
+
+    On a terminal it rewrites one line in place, elsewhere it appends lines.
 
     Call :meth:`update` after every tick and :meth:`finish` at exit (it ends the status
     line and writes :func:`exit_summary`).

@@ -33,10 +33,11 @@ def run(args: argparse.Namespace) -> int:
     if not args.rate > 0:
         raise UsageError(f'--rate: must be positive, got {args.rate}')
     if args.resimulate:
-        from drill_twin.twin.resimulate import resimulate
+        from drill_twin.cli.progress import ProgressBar
+        from drill_twin.recording.resimulate import resimulate
 
         try:
-            result = resimulate(path)
+            result = resimulate(path, progress=ProgressBar('resimulate'))
         except ValueError as error:
             raise UsageError(str(error)) from None
         ensemble = result.ensemble_max_difference or {}

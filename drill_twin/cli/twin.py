@@ -54,8 +54,11 @@ OPTION_PARAMETERS = {'duration': ('--duration', 'duration_s'),
 
 
 def ros_arguments(args: argparse.Namespace) -> list[str]:
-    """The ROS command line of the node for the parsed options (each value checked against
-    the parameter's type and range: UsageError)."""
+    """
+    Return the ROS command line of the node for the parsed options.
+
+    Each value is checked against the parameter's type and range (UsageError).
+    """
     params_file = args.params_file or str(config_directory() / 'twin.yaml')
     if not Path(params_file).is_file():
         raise UsageError(f'--params-file: {params_file}: no such file')
@@ -100,9 +103,13 @@ def ros_arguments(args: argparse.Namespace) -> list[str]:
 
 
 def checked_start(ros: list[str]) -> dict:
-    """The node's parameters, checked as the node would (params files and -p rules included),
-    and its model configuration loaded and pre-flighted: every problem is one line (exit 2)
-    before the node starts. Returns the parameters."""
+    """
+    Check the node's parameters and model configuration before the node starts.
+
+    The parameters are checked as the node would (params files and -p rules included), the
+    model configuration is loaded and pre-flighted: every problem is one line (exit 2).
+    Returns the parameters.
+    """
     try:
         values = validate_ros_arguments(ros)
     except ParameterError as error:

@@ -1,4 +1,5 @@
-"""Recording layer of drill_twin: rosbag2 bags of MCAP files and their rerun views.
+"""
+Recording layer of drill_twin: rosbag2 bags of MCAP files and their rerun views.
 
 Modules (none imports rclpy or rerun at import time):
 
@@ -13,14 +14,14 @@ Modules (none imports rclpy or rerun at import time):
 - :mod:`~drill_twin.recording.twin_log` - the twin node's log;
 - :mod:`~drill_twin.recording.reader` - reading logs back (also cut ones);
 - :mod:`~drill_twin.recording.recovery` - making a cut file whole;
+- :mod:`~drill_twin.recording.resimulate` - re-running a logged twin and comparing;
 - :mod:`~drill_twin.recording.rerun_view` - rerun blueprint, ``.rrd`` conversion, viewer.
 """
 
 from drill_twin.recording.bag_writer import BagWriter
-from drill_twin.recording.log_metadata import RECORD_NAME as TWIN_METADATA_NAME
-from drill_twin.recording.log_metadata import TwinLogMetadata
+from drill_twin.recording.log_metadata import RECORD_NAME, TwinLogMetadata
 from drill_twin.recording.mcap_log import McapLog
 from drill_twin.recording.reader import iter_messages, LogMessage, read_metadata, topics
 
 __all__ = ['BagWriter', 'iter_messages', 'LogMessage', 'McapLog', 'read_metadata', 'topics',
-           'TWIN_METADATA_NAME', 'TwinLogMetadata']
+           'RECORD_NAME', 'TwinLogMetadata']

@@ -1,4 +1,5 @@
-"""A rosbag2 bag on disk: a directory of MCAP split files and its ``metadata.yaml``.
+"""
+A rosbag2 bag on disk: a directory of MCAP split files and its ``metadata.yaml``.
 
 Layout (what ``ros2 bag record -s mcap --max-bag-duration`` leaves)::
 
@@ -92,7 +93,7 @@ class BagMetadata:
         return max(ends) - self.starting_time_ns if ends else 0
 
     def to_dict(self) -> dict:
-        """The ``rosbag2_bagfile_information`` mapping, keys in rosbag2's order."""
+        """Return the ``rosbag2_bagfile_information`` mapping, keys in rosbag2's order."""
         return {'rosbag2_bagfile_information': {
             'version': METADATA_VERSION,
             'storage_identifier': STORAGE_IDENTIFIER,
@@ -120,7 +121,8 @@ class BagMetadata:
         return yaml.safe_dump(self.to_dict(), sort_keys=False, default_flow_style=False)
 
     def write(self, directory: str | os.PathLike) -> None:
-        """Write ``directory/metadata.yaml`` atomically (temporary file, fsync, rename).
+        """
+        Write ``directory/metadata.yaml`` atomically (temporary file, fsync, rename).
 
         Raises OSError (e.g. ENOSPC) with the old file, if any, left in place.
         """
@@ -146,7 +148,7 @@ class BagMetadata:
 
 
 def read_bag_metadata(directory: str | os.PathLike) -> dict:
-    """The ``rosbag2_bagfile_information`` mapping of a bag (raises OSError, ValueError)."""
+    """Read a bag's ``rosbag2_bagfile_information`` mapping (OSError, ValueError)."""
     path = Path(directory) / METADATA_FILE
     try:
         content = yaml.safe_load(path.read_text(encoding='utf-8'))
@@ -161,7 +163,7 @@ def _split_order(path: Path) -> tuple:
 
 
 def listed_splits(directory: str | os.PathLike) -> list[Path]:
-    """The splits ``metadata.yaml`` lists (the complete ones), in order; [] without it."""
+    """List the splits ``metadata.yaml`` lists (the complete ones), in order; [] without it."""
     directory = Path(directory)
     if not (directory / METADATA_FILE).is_file():
         return []
@@ -170,7 +172,8 @@ def listed_splits(directory: str | os.PathLike) -> list[Path]:
 
 
 def split_files(path: str | os.PathLike) -> list[Path]:
-    """Every MCAP file of a log in recording order.
+    """
+    Every MCAP file of a log in recording order.
 
     ``path`` is a single ``.mcap`` file (-> [path]) or a bag directory: the splits its
     ``metadata.yaml`` lists, then any other ``.mcap`` file in it (a split being written, or

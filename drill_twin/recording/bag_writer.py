@@ -1,4 +1,5 @@
-"""Write a rosbag2 bag whose MCAP files each hold a bounded span of log time.
+"""
+Write a rosbag2 bag whose MCAP files each hold a bounded span of log time.
 
 :class:`BagWriter` is :class:`~drill_twin.recording.mcap_log.McapLog` split by time, as
 rosbag2's ``max_bag_duration``: when a message's log time is ``split_duration_s`` or more past
@@ -27,7 +28,8 @@ DEFAULT_SPLIT_DURATION_S = 300.0
 
 
 class BagWriter:
-    """A rosbag2 bag directory of MCAP splits; a context manager, safe to finish twice.
+    """
+    A rosbag2 bag directory of MCAP splits; a context manager, safe to finish twice.
 
     Usage::
 
@@ -171,8 +173,11 @@ class BagWriter:
                 self._log.add_metadata(name, record)
 
     def _complete_split(self) -> None:
-        """Finish the current split and list it in ``metadata.yaml`` (again, if writing that
-        failed the last time)."""
+        """
+        Finish the current split and list it in ``metadata.yaml``.
+
+        Lists it again if writing ``metadata.yaml`` failed the last time.
+        """
         if not self._split_listed:
             self._log.finish()
             counts = self._log.message_counts
@@ -188,8 +193,12 @@ class BagWriter:
     # -- ending ----------------------------------------------------------------------------
 
     def finish(self) -> None:
-        """Finish the current split and write the final ``metadata.yaml``; later calls do
-        nothing. Raises OSError if that fails (the current split is then not listed)."""
+        """
+        Finish the current split and write the final ``metadata.yaml``.
+
+        Later calls do nothing. Raises OSError if that fails (the current split is then not
+        listed).
+        """
         with self._lock:
             if self._finished:
                 return

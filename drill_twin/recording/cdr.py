@@ -1,4 +1,5 @@
-"""Fast decoding of the few fixed-layout CDR messages the viewer plots, without rclpy.
+"""
+Fast decoding of the few fixed-layout CDR messages the viewer plots, without rclpy.
 
 rclpy's ``deserialize_message`` builds a Python message object per record (hundreds of
 microseconds a JointState); the viewer needs only numbers, so these decoders read them
@@ -47,7 +48,7 @@ def _header(data: bytes) -> tuple[int, int]:
 
 
 def _doubles(data: bytes, position: int) -> tuple[tuple[float, ...], int]:
-    """A float64[] sequence: (values, position after it)."""
+    """Read a float64[] sequence: (values, position after it)."""
     position = _align(position, 4)
     (count,) = _U32.unpack_from(data, position)
     position = _align(position + 4, 8) if count else position + 4
@@ -76,7 +77,8 @@ def vector3_stamped(data: bytes) -> tuple[int, tuple[float, float, float]]:
 
 
 def imu(data: bytes) -> tuple[int, tuple[float, float, float], tuple[float, float, float]]:
-    """sensor_msgs/Imu: (stamp ns, angular velocity (x, y, z), linear acceleration (x, y, z)).
+    """
+    sensor_msgs/Imu: (stamp ns, angular velocity (x, y, z), linear acceleration (x, y, z)).
 
     After the header: orientation (4 doubles) and its covariance (9), angular velocity (3)
     and its covariance (9), linear acceleration (3) and its covariance (9).

@@ -1,4 +1,5 @@
-"""The twin streamed to a rerun viewer while it runs, with the layout of the recorded view.
+"""
+The twin streamed to a rerun viewer while it runs, with the layout of the recorded view.
 
 :class:`LiveView` takes the engine's :class:`~drill_twin.twin.engine.TwinSnapshot` after
 each tick, keeps samples at most ``sample_rate_hz`` per second of twin time (contact-force
@@ -30,15 +31,16 @@ def _bit_row(state) -> tuple[float, ...]:
 
 
 class LiveView:
-    """Stream twin snapshots to rerun (see the module docstring).
+    """
+    Stream twin snapshots to rerun (see the module docstring).
 
-    Args:
-        stations_m: depths (m) of the measurement stations, in the snapshot's order.
-        config: the model configuration (borehole and pipe sizes); default: the built-in one.
-        recording: a rerun ``RecordingStream`` to log to (default: a new one; connect it with
-            :meth:`spawn_viewer` or :meth:`connect`, or give one that saves to a file).
-        active_tab: the tab shown first (index or name, see ``rerun_layout.TABS``).
-        clock: wall clock (s) for the send rate (tests pass a fake one).
+    :param stations_m: depths (m) of the measurement stations, in the snapshot's order.
+    :param config: the model configuration (borehole and pipe sizes); default: the built-in
+        one.
+    :param recording: a rerun ``RecordingStream`` to log to (default: a new one; connect it
+        with :meth:`spawn_viewer` or :meth:`connect`, or give one that saves to a file).
+    :param active_tab: the tab shown first (index or name, see ``rerun_layout.TABS``).
+    :param clock: wall clock (s) for the send rate (tests pass a fake one).
     """
 
     def __init__(self, stations_m: Sequence[float], config=None, *, recording=None,
@@ -74,8 +76,11 @@ class LiveView:
     # -- viewer ------------------------------------------------------------------------------
     def spawn_viewer(self, *, web: bool = False, port: int = 9876,
                      web_port: int = 9090) -> subprocess.Popen:
-        """Start a rerun viewer (native, or the web viewer) bound to 127.0.0.1 and stream to
-        it; returns the viewer process (left running when the twin stops)."""
+        """
+        Start a rerun viewer (native, or the web viewer) bound to 127.0.0.1 and stream to it.
+
+        Returns the viewer process (left running when the twin stops).
+        """
         from drill_twin.recording.rerun_view import viewer_command
 
         self.viewer = subprocess.Popen(viewer_command(None, web=web, port=port,
@@ -89,8 +94,12 @@ class LiveView:
         self._style()
 
     def _style(self) -> None:
-        """Log the static styles and drawings once the recording has its sink (static data
-        logged before ``save``/``connect`` did not all reach the viewer in rerun 0.41)."""
+        """
+        Log the static styles and drawings once the recording has its sink.
+
+        Static data logged before ``save``/``connect`` did not all reach the viewer in
+        rerun 0.41.
+        """
         layout.log_styles(self.recording, self.geometry)
         self._styled = True
 
@@ -102,8 +111,12 @@ class LiveView:
         self._commands: dict[str, list] = {'speed': [], 'hook': []}
 
     def update(self, snapshot, time_s: float | None = None) -> None:
-        """Take the snapshot of a tick at twin time ``time_s`` (s since the start; default
-        ``snapshot.time_s``); sends buffered samples when a send is due."""
+        """
+        Take the snapshot of a tick at twin time ``time_s``.
+
+        ``time_s``: s since the start, default ``snapshot.time_s``. Buffered samples are sent
+        when a send is due.
+        """
         t = float(snapshot.time_s if time_s is None else time_s)
         for event in snapshot.events:
             self._events.append((float(event.time_s), f'{event.kind.replace("_", " ")}: '
@@ -121,7 +134,7 @@ class LiveView:
 
     def command(self, time_s: float, *, top_drive_speed_rad_per_s: float | None = None,
                 hook_load_n: float | None = None) -> None:
-        """A command as applied at twin time ``time_s`` (drawn as a dot)."""
+        """Draw a command as applied at twin time ``time_s`` (a dot)."""
         if top_drive_speed_rad_per_s is not None:
             self._commands['speed'].append((float(time_s), float(top_drive_speed_rad_per_s)))
         if hook_load_n is not None:
@@ -213,7 +226,7 @@ class LiveView:
         self._clear()
 
     def log_line(self, time_s: float, text: str, level: str = 'info') -> None:
-        """A line of the twin's own log (what goes to /rosout)."""
+        """Show a line of the twin's own log (what goes to /rosout)."""
         layout.send_text(self.recording, 'rosout', [float(time_s)], [text], [level])
 
     def close(self) -> None:

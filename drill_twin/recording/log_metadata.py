@@ -1,4 +1,5 @@
-"""The twin log's run description: one frozen dataclass, written and read by the same code.
+"""
+The twin log's run description: one frozen dataclass, written and read by the same code.
 
 The twin node writes it into every split of its log as the MCAP metadata record
 ``drill_twin`` (string keys and values); ``drill-twin replay --resimulate`` reads it back with
@@ -35,7 +36,8 @@ class LogMetadataError(ValueError):
 
 @dataclass(frozen=True)
 class TwinLogMetadata:
-    """What a twin log needs to be re-simulated (see the module docstring for the keys).
+    """
+    What a twin log needs to be re-simulated (see the module docstring for the keys).
 
     :param config_yaml: the model configuration as YAML text.
     :param seed: seed of the ensemble.
@@ -83,7 +85,7 @@ class TwinLogMetadata:
         return int(round(self.time_step_s * 1e9))
 
     def to_record(self) -> dict[str, str]:
-        """The metadata record's string pairs (keys of the module docstring)."""
+        """Return the metadata record's string pairs (keys of the module docstring)."""
         record = {}
         for field in dataclasses.fields(self):
             value = getattr(self, field.name)
@@ -93,7 +95,8 @@ class TwinLogMetadata:
     @classmethod
     def from_record(cls, record: Mapping[str, str], source: str = 'log'
                     ) -> TwinLogMetadata:
-        """Parse a ``drill_twin`` record; raise :class:`LogMetadataError` naming the key.
+        """
+        Parse a ``drill_twin`` record; raise :class:`LogMetadataError` naming the key.
 
         Keys added after the first logs (``ensemble_process``, ``rate_hz``, ``substeps``,
         ``fast``, ``kpi_window_s``, ``version``) take their defaults when missing.

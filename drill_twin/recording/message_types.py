@@ -1,4 +1,5 @@
-"""ROS message classes from type names such as 'sensor_msgs/msg/JointState'.
+"""
+ROS message classes from type names such as 'sensor_msgs/msg/JointState'.
 
 rosidl_runtime_py (and its ``get_message``) is not on PyPI, so the generated Python package
 ``<pkg>.msg`` is imported directly.  Importing a message package does not import rclpy.
@@ -13,7 +14,8 @@ _TYPE_NAME = re.compile(r'^([A-Za-z][A-Za-z0-9_]*)/(?:(msg)/)?([A-Za-z][A-Za-z0-
 
 
 def split_type_name(type_name: str) -> tuple[str, str]:
-    """Split 'pkg/msg/Type' (or 'pkg/Type') into ('pkg', 'Type').
+    """
+    Split 'pkg/msg/Type' (or 'pkg/Type') into ('pkg', 'Type').
 
     Raises ValueError for anything else (services and actions are not message types).
     """
@@ -31,7 +33,8 @@ def canonical_type_name(type_name: str) -> str:
 
 @functools.lru_cache(maxsize=None)
 def import_message_class(type_name: str) -> type:
-    """Return the generated Python class of a message type, e.g. 'std_msgs/msg/Float64'.
+    """
+    Return the generated Python class of a message type, e.g. 'std_msgs/msg/Float64'.
 
     Raises ValueError for a malformed name, ImportError if the package is not installed and
     AttributeError if the package has no such message.
@@ -45,7 +48,8 @@ def import_message_class(type_name: str) -> type:
 
 
 def type_name_of(message_or_class: object) -> str:
-    """'pkg/msg/Type' of a generated message instance or class.
+    """
+    'pkg/msg/Type' of a generated message instance or class.
 
     Generated classes live in modules named '<pkg>.msg._<snake_case_type>'.
     """

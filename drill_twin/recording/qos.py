@@ -1,4 +1,5 @@
-"""QoS of a recorded topic: rosbag2's ``offered_qos_profiles`` YAML and the rclpy profile.
+"""
+QoS of a recorded topic: rosbag2's ``offered_qos_profiles`` YAML and the rclpy profile.
 
 rosbag2 (metadata version 9, Jazzy) stores in each MCAP channel's metadata a YAML list of
 the QoS profiles offered by the topic's publishers, one mapping per publisher::
@@ -69,7 +70,8 @@ def qos_profile_dict(spec: QosSpec) -> dict[str, Any]:
 
 
 def offered_qos_profiles_yaml(specs: QosSpec | Iterable[QosSpec]) -> str:
-    """Return the channel metadata ``offered_qos_profiles`` for one or more publishers.
+    """
+    Return the channel metadata ``offered_qos_profiles`` for one or more publishers.
 
     Block-style YAML without a trailing newline, as yaml-cpp's ``YAML::Dump`` writes it.
     """

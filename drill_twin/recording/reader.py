@@ -1,4 +1,5 @@
-"""Read a twin log back: messages deserialized with rclpy, topics and metadata records.
+"""
+Read a twin log back: messages deserialized with rclpy, topics and metadata records.
 
 A log is a rosbag2 bag directory (``metadata.yaml`` and MCAP splits, see
 :mod:`drill_twin.recording.bag`) or a single MCAP file. A bag is read split after split:
@@ -55,7 +56,8 @@ class LogMessage(NamedTuple):
 
 def iter_records(path: str | os.PathLike, *, emit_chunks: bool = False,
                  strict: bool = False) -> Iterator[Any]:
-    """Yield the MCAP records (``mcap.records``) of a log in file order.
+    """
+    Yield the MCAP records (``mcap.records``) of a log in file order.
 
     Records inside chunks are yielded unless ``emit_chunks``.  Stops (or, if ``strict``,
     raises :class:`TruncatedLogError`) at the first unreadable record.
@@ -77,7 +79,8 @@ def iter_records(path: str | os.PathLike, *, emit_chunks: bool = False,
 
 
 def log_files(path: str | os.PathLike) -> list[Path]:
-    """The MCAP files of a log (a bag directory or one file) in recording order.
+    """
+    List the MCAP files of a log (a bag directory or one file) in recording order.
 
     Raises FileNotFoundError (one line) if ``path`` does not exist, is a directory without
     MCAP files, or a split its ``metadata.yaml`` lists is missing; ValueError if that
@@ -97,8 +100,11 @@ def log_files(path: str | os.PathLike) -> list[Path]:
 
 def iter_raw(path: str | os.PathLike, topics: Iterable[str] | None = None, *,
              strict: bool = False) -> Iterator[tuple[Schema | None, Channel, Message]]:
-    """Yield (schema, channel, message) records of the readable part of a log in order
-    (every split of a bag in turn)."""
+    """
+    Yield (schema, channel, message) records of the readable part of a log in order.
+
+    Every split of a bag in turn.
+    """
     for file in log_files(path):
         yield from _iter_raw_file(file, topics, strict)
 
@@ -125,7 +131,8 @@ def _iter_raw_file(path, topics, strict: bool):
 
 def iter_messages(path: str | os.PathLike, topics: Iterable[str] | None = None, *,
                   strict: bool = False) -> Iterator[LogMessage]:
-    """Messages of a log deserialized with rclpy, in file order (= write order).
+    """
+    Messages of a log deserialized with rclpy, in file order (= write order).
 
     :param topics: only these topics (default: all).
     :param strict: raise :class:`TruncatedLogError` instead of stopping at damage.
@@ -186,7 +193,8 @@ def _file_topics(path) -> dict[str, str]:
 
 
 def read_metadata(path: str | os.PathLike) -> dict[str, dict[str, str]]:
-    """{record name: {key: value}} of the metadata records of a log (later ones win).
+    """
+    {record name: {key: value}} of the metadata records of a log (later ones win).
 
     Every split of a bag carries the same records: the first split is read.
     """
@@ -198,8 +206,12 @@ def read_metadata(path: str | os.PathLike) -> dict[str, dict[str, str]]:
 
 
 def is_complete(path: str | os.PathLike) -> bool:
-    """Tell whether the log was finished: a file with a readable footer and summary, or a
-    bag whose ``metadata.yaml`` lists every one of its MCAP files, each complete."""
+    """
+    Tell whether the log was finished.
+
+    A file with a readable footer and summary, or a bag whose ``metadata.yaml`` lists every one
+    of its MCAP files, each complete.
+    """
     path = Path(path)
     if path.is_dir():
         if not (path / METADATA_FILE).is_file():

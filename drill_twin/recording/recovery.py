@@ -1,4 +1,5 @@
-"""Turn a log cut short (killed recorder, full disk) into a complete MCAP file.
+"""
+Turn a log cut short (killed recorder, full disk) into a complete MCAP file.
 
 The readable prefix (every complete chunk, see :mod:`drill_twin.recording.reader`) is copied
 record by record into a new file with a summary and footer, so that tools that need the
@@ -11,7 +12,8 @@ import os
 from mcap.records import Channel, Header, Message, Metadata, Schema
 from mcap.writer import CompressionType, MCAP0_MAGIC, Writer
 
-from drill_twin.recording.mcap_log import DEFAULT_CHUNK_SIZE, library_string, PROFILE
+from drill_twin.recording.mcap_log import (DEFAULT_CHUNK_SIZE, library_string, PROFILE,
+                                           use_zstd_level)
 from drill_twin.recording.reader import iter_records
 
 
@@ -20,7 +22,8 @@ class NotMcapError(ValueError):
 
 
 def recover_log(source: str | os.PathLike, destination: str | os.PathLike) -> int:
-    """Copy the readable records of ``source`` into a complete MCAP ``destination``.
+    """
+    Copy the readable records of ``source`` into a complete MCAP ``destination``.
 
     Schemas, channels (with their metadata), messages (times unchanged) and metadata
     records are kept; the header's profile is kept; chunks are zstd-compressed.  Returns
@@ -37,6 +40,7 @@ def recover_log(source: str | os.PathLike, destination: str | os.PathLike) -> in
     schemas: dict[int, Schema] = {}
     pending_channels: dict[int, Channel] = {}
     copied = 0
+    use_zstd_level()
     with open(destination, 'wb') as stream:
         writer = Writer(stream, chunk_size=DEFAULT_CHUNK_SIZE, compression=CompressionType.ZSTD)
         started = False

@@ -1,5 +1,8 @@
-"""The twin's rerun layout: entities, units, styles and blueprint, shared by the recorded
-view (:mod:`~drill_twin.recording.rerun_native`) and the live one
+"""
+The twin's rerun layout.
+
+Entities, units, styles and blueprint, shared by the recorded view
+(:mod:`~drill_twin.recording.rerun_native`) and the live one
 (:mod:`~drill_twin.recording.live_view`).
 
 Everything is logged natively (not through rerun's MCAP importer) on one duration timeline,
@@ -70,8 +73,11 @@ class StringGeometry:
 
     @classmethod
     def from_config(cls, config, stations_m: Sequence[float] | None = None) -> 'StringGeometry':
-        """From a :class:`~drill_twin.config.schema.DrillStringConfig`; stations default to
-        ``config.output.stations_m``."""
+        """
+        From a :class:`~drill_twin.config.schema.DrillStringConfig`.
+
+        Stations default to ``config.output.stations_m``.
+        """
         from drill_twin.fem.mesh import build_mesh
 
         mesh = build_mesh(config)
@@ -196,7 +202,7 @@ def _log_cross_section(recording, entity: str, borehole_m: float, outer_m: float
 
 
 def _scale_mm(length_mm: float) -> float:
-    """A round scale-bar length about a third of ``length_mm``."""
+    """Return a round scale-bar length about a third of ``length_mm``."""
     for step in (500, 200, 100, 50, 20, 10, 5, 2, 1):
         if step <= length_mm / 2.5:
             return float(step)
@@ -225,7 +231,7 @@ def _scalars(recording, entity: str, t_s, values) -> None:
 
 def send_bit(recording, t_s, depth_m, rop_m_per_s, speed_rad_per_s, weight_on_bit_n,
              torque_on_bit_nm) -> None:
-    """The mean model's bit (SI, the paper's signs), arrays of one value per sample."""
+    """Send the mean model's bit (SI, the paper's signs), arrays of one value per sample."""
     _scalars(recording, 'bit/depth', t_s, depth_m)
     _scalars(recording, 'bit/rop', t_s, 3600.0 * np.asarray(rop_m_per_s))
     _scalars(recording, 'bit/speed', t_s, RPM_PER_RAD_PER_S * np.asarray(speed_rad_per_s))
@@ -248,7 +254,7 @@ def send_commands(recording, speed_t_s, speed_rad_per_s, hook_t_s, hook_load_n) 
 
 
 def send_kpis(recording, t_s, stick_slip_severity, mse_pa, rop_m_per_h) -> None:
-    """KPIs over the twin's window: SSI (-), MSE (Pa), ROP (m/h)."""
+    """Send the KPIs over the twin's window: SSI (-), MSE (Pa), ROP (m/h)."""
     _scalars(recording, 'kpi/ssi', t_s, stick_slip_severity)
     _scalars(recording, 'kpi/mse', t_s, 1e-6 * np.asarray(mse_pa, dtype=float))
     _scalars(recording, 'kpi/rop', t_s, rop_m_per_h)
@@ -262,9 +268,12 @@ def _ensemble_values(states) -> dict[str, np.ndarray]:
 
 
 def send_ensemble(recording, t_s, mean, lower, upper) -> None:
-    """Ensemble mean and 2.5/97.5 % quantiles, arrays (n, 6) in BitState field order
-    (depth, ROP, WOB, angle, speed, TOB; SI).  The band is :data:`BAND_LINES` lines from
-    the lower to the upper bound."""
+    """
+    Send the ensemble mean and 2.5/97.5 % quantiles.
+
+    Arrays (n, 6) in BitState field order (depth, ROP, WOB, angle, speed, TOB; SI). The band
+    is :data:`BAND_LINES` lines from the lower to the upper bound.
+    """
     means, lows, highs = map(_ensemble_values, (mean, lower, upper))
     fractions = np.linspace(0.0, 1.0, BAND_LINES)
     for key in ENSEMBLE_QUANTITIES:
@@ -274,7 +283,7 @@ def send_ensemble(recording, t_s, mean, lower, upper) -> None:
 
 
 def send_ensemble_model(recording, t_s, rop_m_per_s, weight_on_bit_n, speed_rad_per_s) -> None:
-    """The mean model beside the ensemble, for comparison (SI)."""
+    """Send the mean model beside the ensemble, for comparison (SI)."""
     _scalars(recording, 'ensemble/speed/model', t_s,
              RPM_PER_RAD_PER_S * np.asarray(speed_rad_per_s))
     _scalars(recording, 'ensemble/rop/model', t_s, 3600.0 * np.asarray(rop_m_per_s))
@@ -283,7 +292,8 @@ def send_ensemble_model(recording, t_s, rop_m_per_s, weight_on_bit_n, speed_rad_
 
 def send_station(recording, geometry: StringGeometry, index: int, t_s, v_m, w_m,
                  previous: tuple[float, float] | None = None) -> None:
-    """One station's lateral motion: orbit segments, pipe outline, radial deflection.
+    """
+    One station's lateral motion: orbit segments, pipe outline, radial deflection.
 
     ``previous``: the (v, w) before the first sample (m), to join batches of a live view.
     """
@@ -310,7 +320,7 @@ def send_station(recording, geometry: StringGeometry, index: int, t_s, v_m, w_m,
 
 
 def _log_data_styles(recording, geometry: StringGeometry) -> None:
-    """Static colours of the orbits, pipes and bar charts."""
+    """Log the static colours of the orbits, pipes and bar charts."""
     import rerun as rr
 
     _log_bar_axes(recording, geometry)
@@ -324,10 +334,12 @@ def _log_data_styles(recording, geometry: StringGeometry) -> None:
 
 def send_profiles(recording, geometry: StringGeometry, t_s, contact_force_n,
                   station_radial_m) -> None:
-    """Along the depth at each sample: wall contact force at every node (N, (n, nodes)) and
-    the stations' radial deflection (m, (n, stations)) as a % of their clearance."""
-    import rerun as rr
+    """
+    Along the depth at each sample.
 
+    Wall contact force at every node (N, (n, nodes)) and the stations' radial deflection (m, (n,
+    stations)) as a % of their clearance.
+    """
     t_s = np.asarray(t_s, dtype=float)
     if t_s.size == 0:
         return
@@ -355,7 +367,8 @@ class _ArrowBatch:
 
 
 def _bar_values(values: np.ndarray):
-    """A column of bar-chart value vectors, one per row of ``values`` (n, bars).
+    """
+    Make a column of bar-chart value vectors, one per row of ``values`` (n, bars).
 
     ``rr.BarChart.columns`` stacks equal-length rows into one 2-D tensor, and building one
     ``TensorData`` per row costs milliseconds; the Arrow array is built here directly.
@@ -379,7 +392,7 @@ def _bar_values(values: np.ndarray):
 
 
 def _log_bar_axes(recording, geometry: StringGeometry) -> None:
-    """Static abscissa (depth, m), bar widths and colours of the along-the-depth charts."""
+    """Log the abscissa (depth, m), bar widths and colours of the along-the-depth charts."""
     import rerun as rr
 
     nodes = geometry.node_x_m
@@ -397,8 +410,12 @@ def _log_bar_axes(recording, geometry: StringGeometry) -> None:
 
 
 def send_health(recording, t_s, values: dict[str, Sequence[float]]) -> None:
-    """Health figures: 'real_time_factor', 'tick_time_ms', 'tick_time_max_ms',
-    'iterations_per_step', 'ensemble_iterations_per_step', 'resets' (any subset)."""
+    """
+    Health figures.
+
+    'real_time_factor', 'tick_time_ms', 'tick_time_max_ms', 'iterations_per_step',
+    'ensemble_iterations_per_step', 'resets' (any subset).
+    """
     for key, entity in (('real_time_factor', 'diagnostics/real_time_factor'),
                         ('tick_time_ms', 'diagnostics/tick_time'),
                         ('tick_time_max_ms', 'diagnostics/tick_time_max'),
@@ -473,7 +490,7 @@ def _orbit_view(geometry: StringGeometry, index: int):
                                   start=rrb.TimeRangeBoundary.cursor_relative(seconds=-TRAIL_S),
                                   end=rrb.TimeRangeBoundary.cursor_relative())
     return rrb.Spatial2DView(
-        name=f'Orbit at {x_m:g} m',
+        name=f'Orbit at {itf.station_label(x_m)}',
         origin=entity, contents=[f'{entity}/{part}' for part in (
             'wall', 'contact_circle', 'axes', 'labels', 'orbit', 'pipe')],
         visual_bounds=rrb.VisualBounds2D(x_range=[-reach, reach],
@@ -498,7 +515,7 @@ def _lateral_tab(geometry: StringGeometry):
                                   origin='along/contact_force', plot_legend=_legend(False)))
     for x_m in geometry.stations_m:
         entity = station_entity(x_m)
-        views.append(_series(f'Radial deflection at {x_m:g} m (mm)',
+        views.append(_series(f'Radial deflection at {itf.station_label(x_m)} (mm)',
                              [f'{entity}/radial', f'{entity}/clearance']))
     views.append(rrb.BarChartView(name='Deflection, % of clearance, vs depth (m)',
                                   origin='along/deflection', plot_legend=_legend(False)))
@@ -546,7 +563,8 @@ def _diagnostics_tab():
 
 def twin_blueprint(geometry: StringGeometry, *, active_tab: int | str = 0,
                    follow: bool = True):
-    """The rerun blueprint of the twin's views (tabs :data:`TABS`).
+    """
+    Build the rerun blueprint of the twin's views (tabs :data:`TABS`).
 
     :param active_tab: the tab shown first (index or name).
     :param follow: start with the time cursor following the newest data (at the end of a

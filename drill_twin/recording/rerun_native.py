@@ -1,4 +1,5 @@
-"""A twin log as native rerun data: read the MCAP file(s), write one ``.rrd`` with the layout.
+"""
+A twin log as native rerun data: read the MCAP file(s), write one ``.rrd`` with the layout.
 
 rerun's own MCAP importer shows raw ROS fields on wall-clock time; it cannot convert units,
 shade a band or draw an orbit.  Here the log is read with the project's reader
@@ -16,7 +17,6 @@ from collections import defaultdict
 from dataclasses import dataclass, field
 import os
 from pathlib import Path
-import re
 from typing import Iterable, Sequence
 
 import numpy as np
@@ -29,17 +29,18 @@ PROFILE_RATE_HZ = 10.0
 """Samples per second of run time for the along-the-depth bar charts."""
 HEALTH_NAME = 'drill_twin: twin health'
 
-_STATION = re.compile(r'^/drill_twin/vibration/x(\d+)(?:p(\d+))?m/displacement$')
-
 
 class LogNotFound(FileNotFoundError):
     """No MCAP file at the given place."""
 
 
 def log_files(source) -> list[Path]:
-    """The MCAP files of a log, in order: a file, a bag directory, or a list of these
-    (:func:`drill_twin.recording.reader.log_files` for each); LogNotFound (one line) if an
-    item is not a log."""
+    """
+    List the MCAP files of a log, in order.
+
+    A file, a bag directory, or a list of these (:func:`drill_twin.recording.reader.log_files`
+    for each); LogNotFound (one line) if an item is not a log.
+    """
     from drill_twin.recording import reader
 
     if isinstance(source, (str, os.PathLike)):
@@ -56,15 +57,13 @@ def log_files(source) -> list[Path]:
 
 
 def stations_from_topics(topic_names: Iterable[str]) -> list[float]:
-    """Station depths (m) named by the displacement topics, sorted (the inverse of
-    :func:`drill_twin.interface.station_name`)."""
-    stations = []
-    for topic in topic_names:
-        match = _STATION.match(topic)
-        if match:
-            whole, fraction = match.groups()
-            stations.append(float(f'{whole}.{fraction}' if fraction else whole))
-    return sorted(stations)
+    """
+    Return the station depths (m) named by the displacement topics, sorted.
+
+    The inverse of :func:`drill_twin.interface.station_name`.
+    """
+    stations = (itf.station_from_topic(topic) for topic in topic_names)
+    return sorted(x_m for x_m in stations if x_m is not None)
 
 
 @dataclass
@@ -77,7 +76,7 @@ class RunColumns:
     texts: dict[str, list] = field(default_factory=lambda: defaultdict(list))
 
     def array(self, key: str, width: int) -> np.ndarray:
-        """Rows of a series as an array (n, width); (0, width) if none."""
+        """Return the rows of series ``key`` as numbers, shape (n, width); (0, width) if none."""
         rows = self.rows.get(key)
         return np.asarray(rows, dtype=float) if rows else np.zeros((0, width))
 
@@ -184,9 +183,12 @@ def _rosout(run: RunColumns, type_name: str, data: bytes, t_s: float) -> None:
 
 def geometry_of(run: RunColumns, stations_m: Sequence[float] | None = None
                 ) -> layout.StringGeometry:
-    """The string's geometry from the log's configuration (the built-in one if the log has
-    none or an unreadable one) and its stations (given, else those with a displacement
-    topic in the log)."""
+    """
+    Return the string's geometry from the log's configuration and its stations.
+
+    The built-in configuration if the log has none or an unreadable one; the stations given,
+    else those with a displacement topic in the log.
+    """
     import yaml
 
     from drill_twin.config import build_config, ConfigError, load_config
@@ -260,7 +262,8 @@ def _send_ensemble(recording, run: RunColumns) -> None:
 def write_rrd(source, rrd_path: str | os.PathLike, stations_m: Sequence[float] | None = None,
               *, active_tab: int | str = 0, application_id: str = layout.APPLICATION_ID
               ) -> Path:
-    """Convert a twin log into one self-contained ``.rrd`` (data and blueprint).
+    """
+    Convert a twin log into one self-contained ``.rrd`` (data and blueprint).
 
     :param source: a ``.mcap`` file, a bag directory, or a list of these (split files).
     :param stations_m: station depths (m); default: those of the log's topics.

@@ -1,4 +1,5 @@
-"""Looking at a twin log in rerun (0.41): the ``.rrd`` with the layout, and the viewer.
+"""
+Looking at a twin log in rerun (0.41): the ``.rrd`` with the layout, and the viewer.
 
 :func:`save_rrd` converts a log (a ``.mcap`` file, a bag directory or a list of split files)
 into one self-contained ``.rrd``: native rerun data on the ``run time`` timeline with the
@@ -37,7 +38,8 @@ def has_display(environ=None) -> bool:
 
 def save_rrd(source, rrd_path: str | os.PathLike, stations_m: Sequence[float] | None = None,
              *, active_tab: int | str = 0, application_id: str = APPLICATION_ID) -> Path:
-    """Convert a twin log into a self-contained ``.rrd`` (data and layout); returns its path.
+    """
+    Convert a twin log into a self-contained ``.rrd`` (data and layout); returns its path.
 
     :param source: a ``.mcap`` file (also one cut short), a bag directory, or a list.
     :param stations_m: station depths (m); default: those of the log's topics.
@@ -50,9 +52,13 @@ def save_rrd(source, rrd_path: str | os.PathLike, stations_m: Sequence[float] | 
 
 
 def rerun_executable() -> str:
-    """Find the rerun viewer binary: the one the rerun-sdk wheel ships (``rerun_cli/rerun``;
-    the ``bin/rerun`` script only runs it as a child, which outlives a terminated script),
-    else next to this Python (a venv's ``bin/rerun``), else on PATH."""
+    """
+    Find the rerun viewer binary.
+
+    The one the rerun-sdk wheel ships (``rerun_cli/rerun``; the ``bin/rerun`` script only runs
+    it as a child, which outlives a terminated script), else next to this Python (a venv's
+    ``bin/rerun``), else on PATH.
+    """
     try:
         import rerun_cli
 
@@ -73,7 +79,8 @@ def rerun_executable() -> str:
 def viewer_command(rrd_path: str | os.PathLike | None, *, web: bool = False,
                    port: int = DEFAULT_GRPC_PORT, web_port: int = DEFAULT_WEB_PORT,
                    extra_args: Sequence[str] = ()) -> list[str]:
-    """The rerun command line for a viewer bound to 127.0.0.1.
+    """
+    Return the rerun command line for a viewer bound to 127.0.0.1.
 
     Native: the viewer window, its gRPC server on ``port``.  Web: rerun's web viewer over
     HTTP on ``web_port`` and the gRPC proxy on ``port``.  Without ``rrd_path`` the viewer
@@ -97,7 +104,8 @@ def open_viewer(source, stations_m: Sequence[float] | None = None, *,
                 web: bool = False, port: int = DEFAULT_GRPC_PORT,
                 web_port: int = DEFAULT_WEB_PORT,
                 extra_args: Sequence[str] = ()) -> subprocess.Popen:
-    """Convert a log (see :func:`save_rrd`) and start rerun on it, bound to 127.0.0.1.
+    """
+    Convert a log (see :func:`save_rrd`) and start rerun on it, bound to 127.0.0.1.
 
     Writes ``<log stem>.rrd`` into ``rrd_dir`` (default: a new temporary directory, left
     for the viewer to read); ``web`` serves the web viewer instead of opening a window.

@@ -1,4 +1,5 @@
-r"""MCAP schemas of ROS 2 messages, written exactly as rosbag2_storage_mcap writes them.
+r"""
+MCAP schemas of ROS 2 messages, written exactly as rosbag2_storage_mcap writes them.
 
 rosbag2 (``rosbag2_cpp::LocalMessageDefinitionSource``, Jazzy) stores for a topic type a schema
 named 'pkg/msg/Type' with encoding 'ros2msg' whose text is:
@@ -56,7 +57,8 @@ def search_prefixes() -> list[Path]:
 
 
 def interface_file(type_name: str, suffix: str) -> Path:
-    """Find ``share/<pkg>/msg/<Type><suffix>`` ('.msg' or '.json') in the search prefixes.
+    """
+    Find ``share/<pkg>/msg/<Type><suffix>`` ('.msg' or '.json') in the search prefixes.
 
     The first prefix of :func:`search_prefixes` that has the file wins.
     """
@@ -71,7 +73,8 @@ def interface_file(type_name: str, suffix: str) -> Path:
 
 
 def msg_dependencies(text: str, package: str) -> list[str]:
-    """Non-primitive field types of a ``.msg`` text, sorted, as rosbag2 finds them.
+    """
+    Non-primitive field types of a ``.msg`` text, sorted, as rosbag2 finds them.
 
     A bare 'Type' is a type of the same package and becomes 'package/Type'.
     """

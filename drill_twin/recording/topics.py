@@ -1,4 +1,5 @@
-"""The twin's topics as the recorder sees them: topic -> (message type, offered QoS).
+"""
+The twin's topics as the recorder sees them: topic -> (message type, offered QoS).
 
 Built from the names in :mod:`drill_twin.interface`; the vibration topics depend on the
 measurement stations (depths in m along the string).
@@ -28,6 +29,7 @@ FLOAT64 = 'std_msgs/msg/Float64'
 DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
 CLOCK = 'rosgraph_msgs/msg/Clock'
 LOG = 'rcl_interfaces/msg/Log'
+TF_MESSAGE = 'tf2_msgs/msg/TFMessage'
 
 
 class TopicSpec(NamedTuple):
@@ -37,11 +39,14 @@ class TopicSpec(NamedTuple):
     qos: QosSpec
 
 
-def twin_topics(stations_m: Iterable[float] = ()) -> dict[str, TopicSpec]:
-    """List every topic the twin publishes or subscribes.
+def twin_topics(stations_m: Iterable[float] = (), *, tf: bool = False
+                ) -> dict[str, TopicSpec]:
+    """
+    List every topic the twin publishes or subscribes.
 
     :param stations_m: depths (m) of the measurement stations (one IMU and one
         displacement topic each).
+    :param tf: include /tf and /tf_static (published where tf2_msgs is installed).
     """
     state, diagnostics, clock = itf.STATE_QOS, itf.DIAGNOSTICS_QOS, itf.CLOCK_QOS
     result = {
@@ -65,4 +70,7 @@ def twin_topics(stations_m: Iterable[float] = ()) -> dict[str, TopicSpec]:
     for x_m in stations_m:
         result[itf.vibration_imu_topic(x_m)] = TopicSpec(IMU, state)
         result[itf.vibration_displacement_topic(x_m)] = TopicSpec(VECTOR3_STAMPED, state)
+    if tf:
+        result[itf.TF] = TopicSpec(TF_MESSAGE, itf.TF_QOS)
+        result[itf.TF_STATIC] = TopicSpec(TF_MESSAGE, itf.TF_STATIC_QOS)
     return result

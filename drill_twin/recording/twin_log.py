@@ -1,5 +1,8 @@
-"""The twin's log: a rosbag2 bag of every published topic, the commands as applied, and the
-run description (:class:`~drill_twin.recording.log_metadata.TwinLogMetadata`).
+"""
+The twin's log.
+
+A rosbag2 bag of every published topic, the commands as applied, and the run description
+(:class:`~drill_twin.recording.log_metadata.TwinLogMetadata`).
 
 A failed write (full disk, file-size limit, ...) never raises into the twin: the log is closed
 as far as it can be (the last complete split stays listed in ``metadata.yaml``), ``error``
@@ -15,26 +18,28 @@ from drill_twin.recording.topics import twin_topics
 
 
 class TwinLog:
-    """An open log of a twin run: the bag directory ``path`` for the given stations.
+    """
+    An open log of a twin run: the bag directory ``path`` for the given stations.
 
     :param path: the bag directory (created; must not exist or be empty).
     :param stations_m: depths of the measurement stations (m).
     :param metadata: the run description, written into every split.
     :param split_duration_s: log time (s) a split holds at most.
     :param compression: chunk compression ('zstd', 'lz4', 'none').
+    :param tf: record /tf and /tf_static too (needs tf2_msgs).
 
     Raises OSError if the bag cannot be created.
     """
 
     def __init__(self, path: str | Path, stations_m, metadata: TwinLogMetadata, *,
                  split_duration_s: float = DEFAULT_SPLIT_DURATION_S,
-                 compression: str = 'zstd'):
+                 compression: str = 'zstd', tf: bool = False):
         self.path = Path(path)
         self.error: str | None = None
         self._bag = BagWriter(self.path, split_duration_s=split_duration_s,
                               compression=compression)
         try:
-            for topic, spec in twin_topics(stations_m).items():
+            for topic, spec in twin_topics(stations_m, tf=tf).items():
                 self._bag.add_topic(topic, spec.type_name, spec.qos)
             self._bag.add_metadata(RECORD_NAME, metadata.to_record())
         except BaseException:
@@ -72,8 +77,12 @@ class TwinLog:
             self.close()                  # the caller reports self.error
 
     def close(self) -> None:
-        """Complete the current split and ``metadata.yaml``; safe to call twice. A failure
-        here (e.g. the disk is full) is recorded in ``error`` if none is yet."""
+        """
+        Complete the current split and ``metadata.yaml``.
+
+        Safe to call twice. A failure here (e.g. the disk is full) is recorded in ``error`` if
+        none is yet.
+        """
         try:
             self._bag.finish()
         except OSError as error:

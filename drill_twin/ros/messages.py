@@ -1,11 +1,19 @@
-"""Twin snapshots as standard ROS messages (units and conventions: drill_twin.interface)."""
+"""
+Twin snapshots as standard ROS messages (units and conventions: drill_twin.interface).
+
+:func:`tick_messages` gives everything one tick publishes; the node only sends them.
+``TFMessage`` is None where tf2_msgs is not installed (the PyPI ROS wheels lack it; every ROS
+installation has it): the twin then publishes no TF.
+"""
 from __future__ import annotations
 
+from dataclasses import dataclass
+import importlib
 import math
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Vector3Stamped, WrenchStamped
+from geometry_msgs.msg import Transform, TransformStamped, Vector3Stamped, WrenchStamped
 from rcl_interfaces.msg import Log
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState
@@ -15,16 +23,23 @@ from drill_twin import interface as itf
 from drill_twin.twin.engine import BitState, TwinEvent, TwinSnapshot
 from drill_twin.twin.health import HealthReport
 
+try:
+    TFMessage = importlib.import_module('tf2_msgs.msg').TFMessage
+except ImportError:
+    TFMessage = None
+
 LEVELS = {'info': DiagnosticStatus.OK, 'ok': DiagnosticStatus.OK,
           'warn': DiagnosticStatus.WARN, 'error': DiagnosticStatus.ERROR}
 LOG_LEVELS = {'info': Log.INFO, 'warn': Log.WARN, 'error': Log.ERROR}
 
 
 def stamp(time_ns: int) -> Time:
+    """builtin_interfaces/Time of ``time_ns`` (ns)."""
     return Time(sec=int(time_ns // 1_000_000_000), nanosec=int(time_ns % 1_000_000_000))
 
 
 def header(time_ns: int, frame_id: str) -> Header:
+    """std_msgs/Header stamped ``time_ns`` (ns) in ``frame_id``."""
     return Header(stamp=stamp(time_ns), frame_id=frame_id)
 
 
@@ -56,9 +71,12 @@ def top_state(snapshot: TwinSnapshot, time_ns: int) -> JointState:
 
 
 def station_messages(snapshot: TwinSnapshot, stations_m, time_ns: int):
-    """(topic, message) of every station: Imu (accelerations m/s^2: axial, v, w; angular
-    velocity rad/s: spin, theta_y', theta_z'; orientation not provided) and the displacement
-    (x axial, y = v, z = w, m)."""
+    """
+    (topic, message) of every station.
+
+    Imu (accelerations m/s^2: axial, v, w; angular velocity rad/s: spin, theta_y', theta_z';
+    orientation not provided) and the displacement (x axial, y = v, z = w, m).
+    """
     o = snapshot.observation
     out = []
     for k, x_m in enumerate(stations_m):
@@ -81,29 +99,120 @@ def station_messages(snapshot: TwinSnapshot, stations_m, time_ns: int):
 
 
 def contact_forces(snapshot: TwinSnapshot) -> Float64MultiArray:
-    """Radial wall force at every node, top to bottom (N)."""
+    """
+    Radial wall force at every node, top to bottom (N).
+
+    One dimension labelled :data:`~drill_twin.interface.CONTACT_FORCES_LABEL` (node depths:
+    docs/ROS-INTERFACE.md).
+    """
     forces = snapshot.observation.contact_force_n[0]
     message = Float64MultiArray(data=[float(f) for f in forces])
-    message.layout.dim = [MultiArrayDimension(label='node', size=forces.size,
+    message.layout.dim = [MultiArrayDimension(label=itf.CONTACT_FORCES_LABEL, size=forces.size,
                                               stride=forces.size)]
+    message.layout.data_offset = 0
     return message
 
 
+def transform(parent: str, child: str, x_m: float, time_ns: int,
+              rotation=(0.0, 0.0, 0.0, 1.0)) -> TransformStamped:
+    """
+    Place ``child`` at ``x_m`` along ``parent``'s x axis.
+
+    Turned by the quaternion ``rotation`` (x, y, z, w).
+    """
+    message = TransformStamped(header=header(time_ns, parent), child_frame_id=child,
+                               transform=Transform())
+    message.transform.translation.x = float(x_m)
+    q = message.transform.rotation
+    q.x, q.y, q.z, q.w = (float(c) for c in rotation)
+    return message
+
+
+def static_transforms(stations_m, time_ns: int) -> list[TransformStamped]:
+    """
+    Frames fixed for the run.
+
+    The hole in the rig (x turned down) and each station on the string, its distance below the
+    top.
+    """
+    return ([transform(itf.FRAME_RIG, itf.FRAME_HOLE, 0.0, time_ns, itf.HOLE_IN_RIG_QUATERNION)]
+            + [transform(itf.FRAME_TOP, itf.station_frame(x_m), x_m, time_ns)
+               for x_m in stations_m])
+
+
+def moving_transforms(snapshot: TwinSnapshot, time_ns: int) -> list[TransformStamped]:
+    """
+    Frames that move with the string.
+
+    The top at its axial displacement and the bit at its depth, along the hole frame's x (m,
+    down).
+    """
+    top_m = float(snapshot.observation.hook_position_m[0])
+    return [transform(itf.FRAME_HOLE, itf.FRAME_TOP, top_m, time_ns),
+            transform(itf.FRAME_HOLE, itf.FRAME_BIT, snapshot.bit.depth_m, time_ns)]
+
+
+def tf(transforms) -> 'TFMessage':
+    """Wrap ``transforms`` in a tf2_msgs/TFMessage (requires tf2_msgs)."""
+    if TFMessage is None:
+        raise RuntimeError('tf2_msgs is not installed')
+    return TFMessage(transforms=list(transforms))
+
+
 def scalar(value: float) -> Float64:
-    """A KPI; only finite values are published (the node skips a KPI it cannot compute)."""
+    """Make a KPI message; only finite values (the node skips a KPI it cannot compute)."""
     if not math.isfinite(value):
         raise ValueError(f'a KPI must be finite, got {value}')
     return Float64(data=float(value))
 
 
-def tick_messages(snapshot: TwinSnapshot, stations_m, time_ns: int):
-    """(topic, message) of every tick: the bit state and wrench, the top, the wall contacts,
-    the stations."""
+@dataclass(frozen=True, slots=True)
+class TickPlan:
+    """
+    What a tick publishes besides its every-tick messages.
+
+    kpis: the KPIs and hole depth are due; ensemble_stamp_ns: stamp (ns) of the ensemble's
+    mean and bounds if they are due (their own time, a tick behind), else None; clock: /clock
+    (fast mode); tf: the moving TF frames are due (tf2_msgs installed).
+    """
+
+    kpis: bool = False
+    ensemble_stamp_ns: int | None = None
+    clock: bool = False
+    tf: bool = False
+
+
+def state_messages(snapshot: TwinSnapshot, stations_m, time_ns: int):
+    """
+    (topic, message) of every tick.
+
+    The bit state and wrench, the top, the wall contacts, the stations.
+    """
     out = [(itf.BIT_STATE, bit_state(snapshot.bit, time_ns)),
            (itf.BIT_WRENCH, bit_wrench(snapshot.bit, time_ns)),
            (itf.TOP_STATE, top_state(snapshot, time_ns)),
            (itf.CONTACT_FORCES, contact_forces(snapshot))]
     return out + station_messages(snapshot, stations_m, time_ns)
+
+
+def tick_messages(snapshot: TwinSnapshot, stations_m, time_ns: int, plan: TickPlan):
+    """
+    (topic, message) of everything a tick publishes, in order.
+
+    The states, then what ``plan`` says is due (KPIs, ensemble, TF), the events, /clock.
+    """
+    out = state_messages(snapshot, stations_m, time_ns)
+    if plan.kpis:
+        out += kpi_messages(snapshot)
+    if plan.ensemble_stamp_ns is not None and snapshot.ensemble_mean is not None:
+        out += ensemble_messages(snapshot, plan.ensemble_stamp_ns)
+    if plan.tf:
+        out.append((itf.TF, tf(moving_transforms(snapshot, time_ns))))
+    if snapshot.events:
+        out.append((itf.DIAGNOSTICS, events(snapshot.events, time_ns)))
+    if plan.clock:
+        out.append((itf.CLOCK, clock(time_ns)))
+    return out
 
 
 def kpi_messages(snapshot: TwinSnapshot):
@@ -123,6 +232,7 @@ def ensemble_messages(snapshot: TwinSnapshot, time_ns: int):
 
 
 def clock(time_ns: int) -> Clock:
+    """rosgraph_msgs/Clock at ``time_ns`` (ns)."""
     return Clock(clock=stamp(time_ns))
 
 
@@ -140,8 +250,12 @@ def events(events: tuple[TwinEvent, ...], time_ns: int) -> DiagnosticArray:
 
 
 def health_report(report: HealthReport, time_ns: int) -> DiagnosticArray:
-    """``drill_twin: twin health``: level and message of the report, its figures, and every
-    reason as ``reason_1``, ``reason_2``, ... (so that no reason is only on /rosout)."""
+    """
+    Return the health report as ``drill_twin: twin health``.
+
+    Level and message of the report, its figures, and every reason as ``reason_1``,
+    ``reason_2``, ... (so that no reason is only on /rosout).
+    """
     values = dict(report.values)
     values.update({f'reason_{k}': text for k, text in enumerate(report.reasons, start=1)})
     return DiagnosticArray(header=header(time_ns, ''),
@@ -149,6 +263,34 @@ def health_report(report: HealthReport, time_ns: int) -> DiagnosticArray:
 
 
 def log(level: str, text: str, name: str, time_ns: int) -> Log:
-    """A /rosout record of the twin's own log line (for the MCAP log)."""
+    """Make a /rosout record of the twin's own log line (for the MCAP log)."""
     return Log(stamp=stamp(time_ns), level=LOG_LEVELS[level], name=name, msg=text,
                file='', function='', line=0)
+
+
+def publications(stations_m, *, ensemble: bool, clock: bool, tf: bool) -> dict:
+    """
+    Map every topic the twin publishes (but /rosout) to its (message class, QosSpec).
+
+    The ensemble topics with an ensemble, /clock in fast mode, /tf and /tf_static where
+    tf2_msgs is installed.
+    """
+    state = itf.STATE_QOS
+    topics = {itf.BIT_STATE: (JointState, state), itf.BIT_WRENCH: (WrenchStamped, state),
+              itf.TOP_STATE: (JointState, state),
+              itf.CONTACT_FORCES: (Float64MultiArray, state),
+              itf.KPI_STICK_SLIP: (Float64, state), itf.KPI_MSE: (Float64, state),
+              itf.KPI_ROP: (Float64, state), itf.HOLE_DEPTH: (Float64, state),
+              itf.DIAGNOSTICS: (DiagnosticArray, itf.DIAGNOSTICS_QOS)}
+    if ensemble:
+        for topic in (itf.ENSEMBLE_MEAN, itf.ENSEMBLE_LOWER, itf.ENSEMBLE_UPPER):
+            topics[topic] = (JointState, state)
+    for x_m in stations_m:
+        topics[itf.vibration_imu_topic(x_m)] = (Imu, state)
+        topics[itf.vibration_displacement_topic(x_m)] = (Vector3Stamped, state)
+    if clock:
+        topics[itf.CLOCK] = (Clock, itf.CLOCK_QOS)
+    if tf:
+        topics[itf.TF] = (TFMessage, itf.TF_QOS)
+        topics[itf.TF_STATIC] = (TFMessage, itf.TF_STATIC_QOS)
+    return topics

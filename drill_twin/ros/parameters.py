@@ -1,8 +1,12 @@
-"""The twin node's parameters: names, defaults, ranges, descriptions, and which are safe to
-change while it runs (config/twin.yaml sets them under ``drill_twin: ros__parameters:``)."""
+"""
+The twin node's parameters.
+
+Names, defaults, ranges, descriptions, and which are safe to change while it runs
+(config/twin.yaml sets them under ``drill_twin: ros__parameters:``).
+"""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, fields, make_dataclass, replace
 
 
 @dataclass(frozen=True)
@@ -40,8 +44,8 @@ PARAMETERS = (
     ParameterSpec('rate_hz', 100.0, 'tick rate of the wall-clock timer; a tick advances the '
                   'twin to the wall clock in model steps (never past it)', safe=False, low=1.0,
                   high=1000.0),
-    ParameterSpec('fast', False, 'run as fast as possible and publish /clock (also with '
-                  'use_sim_time)', safe=False),
+    ParameterSpec('fast', False, 'run as fast as possible and publish /clock (ignored with '
+                  'use_sim_time, which follows an external /clock)', safe=False),
     ParameterSpec('duration_s', 0.0, 'stop after this much simulated time (0: run until '
                   'stopped)', safe=True, low=0.0, high=1e9),
     ParameterSpec('log_dir', 'runs', 'directory of the logs: each run is a rosbag2 bag '
@@ -71,6 +75,35 @@ PARAMETERS = (
 BY_NAME = {p.name: p for p in PARAMETERS}
 
 
+def _with_values(self, **changes):
+    """Return a copy with ``changes`` (the node replaces its parameters on a change)."""
+    return replace(self, **changes)
+
+
+def _as_dict(self) -> dict:
+    """{name: value} of every parameter."""
+    return {f.name: getattr(self, f.name) for f in fields(self)}
+
+
+def _from_values(cls, values) -> 'TwinParameters':
+    """From {name: value} (defaults for missing names; lists become tuples)."""
+    known = {name: tuple(value) if isinstance(value, list) else value
+             for name, value in values.items() if name in BY_NAME}
+    return cls(**known)
+
+
+TwinParameters = make_dataclass(
+    'TwinParameters',
+    [(p.name, type(p.default), field(default=p.default)) for p in PARAMETERS],
+    frozen=True, slots=True, kw_only=True,
+    namespace={'__doc__': 'The twin node\'s parameters, one field per :data:`PARAMETERS` entry '
+                          '(name, default; SI units as named). Frozen: a change at run time '
+                          'makes a new object (:meth:`with_values`).',
+               'with_values': _with_values, 'as_dict': _as_dict,
+               'from_values': classmethod(_from_values)})
+TwinParameters.__module__ = __name__
+
+
 def unsafe_change_reason(name: str) -> str:
     """Why an unsafe parameter cannot change while the twin runs."""
     return (f'{name} cannot change while the twin runs: it sets up the model, the ensemble, '
@@ -78,7 +111,7 @@ def unsafe_change_reason(name: str) -> str:
 
 
 def markdown_table() -> str:
-    """The parameter table of docs/ROS-INTERFACE.md."""
+    """Return the parameter table of docs/ROS-INTERFACE.md."""
     def show(value):
         if isinstance(value, tuple):
             return '(empty list)' if not value else ', '.join(map(str, value))
@@ -110,8 +143,11 @@ _VALUE_OPTIONS = {'-r', '--remap', '--log-level', '--log-config-file', '-e', '--
 
 
 class ParameterError(ValueError):
-    """A node parameter that the node would refuse; ``str()`` is one line naming where it
-    was given (``origin``), the parameter and the problem."""
+    """
+    A node parameter that the node would refuse.
+
+    ``str()`` is one line naming where it was given (``origin``), the parameter and the problem.
+    """
 
     def __init__(self, origin: str, name: str, message: str):
         where = ': '.join(part for part in (origin, name) if part)
@@ -122,8 +158,12 @@ class ParameterError(ValueError):
 
 
 def check_parameter(name: str, value, origin: str = ''):
-    """``value`` if the node accepts it for ``name`` (rclpy's rules: the default's type, no
-    integer for a floating-point parameter, the range, the choices); else ParameterError."""
+    """
+    Return ``value`` if the node accepts it for ``name``, else raise ParameterError.
+
+    rclpy's rules: the default's type, no integer for a floating-point parameter, the range,
+    the choices.
+    """
     if name in ROS_PARAMETERS:
         if not isinstance(value, bool):
             raise ParameterError(origin, name, f'expected true or false, got {value!r}')
@@ -175,8 +215,11 @@ def _check_range(spec: ParameterSpec, value, origin: str) -> None:
 
 def parameters_from_ros_arguments(ros_args: list[str],
                                   node_name: str = 'drill_twin') -> list[tuple[str, str, object]]:
-    """(origin, name, value) of every parameter of the node in ``ros_args`` (--params-file
-    files and -p/--param rules), in the order rcl applies them (the last one wins).
+    """
+    List (origin, name, value) of every parameter of the node in ``ros_args``.
+
+    From --params-file files and -p/--param rules, in the order rcl applies them (the last
+    one wins).
 
     Raises ParameterError for a file that cannot be read or a rule that cannot be parsed.
     """
@@ -187,8 +230,8 @@ def parameters_from_ros_arguments(ros_args: list[str],
             path = next(tokens, None)
             if path is None:
                 raise ParameterError('--params-file', '', 'a file name is needed')
-            found.extend((path, name, value) for name, value in parameters_in_file(path,
-                                                                                node_name))
+            found.extend((path, name, value)
+                         for name, value in parameters_in_file(path, node_name))
         elif token in ('-p', '--param'):
             rule = next(tokens, None)
             origin = f'--ros-args {token}'
@@ -206,9 +249,12 @@ def parameters_from_ros_arguments(ros_args: list[str],
 
 
 def parameters_in_file(path: str, node_name: str = 'drill_twin') -> list[tuple[str, object]]:
-    """(name, value) of the node's parameters in a ROS 2 parameter file: every
-    ``ros__parameters`` mapping under the node's name, ``/**`` or ``/*`` (namespaces
-    allowed), nested mappings flattened to dotted names."""
+    """
+    (name, value) of the node's parameters in a ROS 2 parameter file.
+
+    Every ``ros__parameters`` mapping under the node's name, ``/**`` or ``/*`` (namespaces
+    allowed), nested mappings flattened to dotted names.
+    """
     from drill_twin.config import yaml_io
     import yaml
 
@@ -246,8 +292,11 @@ def parameters_in_file(path: str, node_name: str = 'drill_twin') -> list[tuple[s
 
 
 def validate_ros_arguments(ros_args: list[str], node_name: str = 'drill_twin') -> dict:
-    """The parameters the node will start with (defaults, then ``ros_args`` in order), each
-    checked by :func:`check_parameter`; raises ParameterError on the first bad one."""
+    """
+    Return the parameters the node will start with (defaults, then ``ros_args`` in order).
+
+    Each is checked by :func:`check_parameter`; raises ParameterError on the first bad one.
+    """
     values = {spec.name: (list(spec.default) if isinstance(spec.default, tuple)
                           else spec.default) for spec in PARAMETERS}
     for origin, name, value in parameters_from_ros_arguments(ros_args, node_name):
@@ -259,9 +308,15 @@ def validate_ros_arguments(ros_args: list[str], node_name: str = 'drill_twin') -
     return values
 
 
-def model_overrides(values: dict) -> list[str]:
-    """The ``--set`` items the node applies to its model configuration: ``time_step_s``
-    (when > 0) first, then ``model_overrides``."""
+def model_overrides(values) -> list[str]:
+    """
+    Return the ``--set`` items the node applies to its model configuration.
+
+    ``time_step_s`` (when > 0) first, then ``model_overrides`` (``values``: a dict or
+    TwinParameters).
+    """
+    if not isinstance(values, dict):
+        values = values.as_dict()
     overrides = [item for item in (values.get('model_overrides') or []) if item]
     if values.get('time_step_s', 0) > 0:
         overrides.insert(0, f'integration.time_step_s={values["time_step_s"]!r}')

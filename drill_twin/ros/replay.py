@@ -39,8 +39,12 @@ def _message_class(type_name: str):
 
 
 def replay(path, rate: float, ros_args: list[str], delay_s: float = 1.0, report=print) -> int:
-    """Publish the log's messages, paced by their log times divided by ``rate``, after
-    ``delay_s`` seconds for subscribers to discover the publishers (FastDDS: 1-2 s)."""
+    """
+    Publish the log's messages, paced by their log times divided by ``rate``.
+
+    Publishing starts after ``delay_s`` seconds, for subscribers to discover the publishers
+    (FastDDS: 1-2 s).
+    """
     from drill_twin.recording.rerun_view import stations_from_topics
 
     rclpy.init(args=ros_args)

@@ -1,6 +1,8 @@
-"""Re-run a logged twin on its recorded commands and seed, and compare the bit state.
+"""
+Re-run a logged twin on its recorded commands and seed, and compare the bit state.
 
-The log is a bag directory or one of its MCAP files (see drill_twin.recording.reader). Its
+The log is a bag directory or one of its MCAP files, read by :mod:`drill_twin.recording.reader`
+beside this module. Its
 ``drill_twin`` metadata (:class:`~drill_twin.recording.log_metadata.TwinLogMetadata`, read
 with the code the node writes it with) holds the model configuration, the seed, the ensemble
 and the time step; the accepted commands are recorded at the twin time at which they took
@@ -30,10 +32,14 @@ ENSEMBLE_TOPICS = {itf.ENSEMBLE_MEAN: 'ensemble_mean', itf.ENSEMBLE_LOWER: 'ense
 
 @dataclass(frozen=True)
 class Resimulation:
-    """compared: bit-state messages compared; max_difference: per field, the largest absolute
+    """
+    The outcome of a re-simulation.
+
+    compared: bit-state messages compared; max_difference: per field, the largest absolute
     difference (SI units); ensemble_compared / ensemble_max_difference: the same over the
     ensemble mean and bound messages; recorded_version: drill_twin's version in the log;
-    commands: commands replayed."""
+    commands: commands replayed.
+    """
 
     compared: int
     max_difference: dict
@@ -59,8 +65,18 @@ def _values(message) -> tuple:
             message.position[1], message.velocity[1], message.effort[1])
 
 
-def resimulate(path) -> Resimulation:
-    """Re-run the twin of the log at ``path`` and compare its recorded bit states."""
+PROGRESS_EVERY_STEPS = 1000
+"""Model steps between two calls of the progress callback."""
+
+
+def resimulate(path, progress=None) -> Resimulation:
+    """
+    Re-run the twin of the log at ``path`` and compare its recorded bit states.
+
+    :param progress: called as ``progress(done_s, total_s)`` (simulated seconds) every
+        :data:`PROGRESS_EVERY_STEPS` steps and at the end, e.g. a
+        :class:`~drill_twin.cli.progress.ProgressBar`.
+    """
     record = read_metadata(path).get(RECORD_NAME)
     if not record:
         raise ValueError(f'{path}: no {RECORD_NAME} metadata record (not a twin log?)')
@@ -119,6 +135,8 @@ def resimulate(path) -> Resimulation:
                         ensemble_compared += 1
                 if k < steps:
                     engine.advance(1)
+                if progress is not None and (k % PROGRESS_EVERY_STEPS == 0 or k == steps):
+                    progress(k * dt_ns * 1e-9, steps * dt_ns * 1e-9)
         finally:
             engine.close()
     return Resimulation(compared=compared, max_difference=differences,
