@@ -387,6 +387,96 @@ class Output:
         _positive(self, 'record_interval_s')
 
 
+# -- The rig's drives (issue 13): top drive and drawworks -------------------------------------
+TopDriveMode = Literal['kinematic', 'dynamic']
+DriveController = Literal['stiff', 'soft_torque', 'impedance']
+DrawworksMode = Literal['hook_load', 'block_velocity', 'autodriller']
+DRIVE_INERTIA_MAX_KG_M2 = 1.0e5
+DRIVE_INERTIA_REASON = ('fifty times a large top drive (rotor and gearbox referred to the '
+                        'main shaft, about 2 000 kg m^2)')
+DRIVE_GAIN_MAX = 1.0e9
+DRIVE_GAIN_REASON = 'a speed loop stiffer than 1 GN m per rad/s is a unit slip'
+DRIVE_TORQUE_MAX_NM = 1.0e6
+DRIVE_TORQUE_REASON = 'ten times the largest top drives (about 100 kN m)'
+BLOCK_SPEED_MAX_M_PER_S = 5.0
+BLOCK_SPEED_REASON = 'drawworks hoist at about 2 m/s at most'
+LINE_STIFFNESS_MAX_N_PER_M = 1.0e10
+LINE_STIFFNESS_REASON = 'a drill line of 12 lines of 1.5 in wire over 50 m is about 1e8 N/m'
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class TopDrive:
+    """The top drive (docs/DRIVES.md). ``kinematic``: the paper's imposed speed (the string's
+    top rotation follows the command at ``operation.top_drive_acceleration_rad_per_s2``);
+    ``dynamic``: a rotor of ``inertia_kg_m2`` (referred to the main shaft through the gearbox)
+    under a PI speed controller whose motor torque is limited to ``torque_limit_nm``, driving
+    the string's top, with the speed set-point shaped by ``controller``.
+
+    ``impedance_nm_s_per_rad`` (N m s/rad) is derived from the string unless given: for
+    ``impedance`` the top pipe's characteristic impedance zeta = I_p sqrt(rho k_s G), for
+    ``soft_torque`` k_t / omega_1 (torsional stiffness over first torsional frequency).
+    """
+
+    mode: TopDriveMode = 'kinematic'
+    inertia_kg_m2: float = 2000.0
+    proportional_gain_nm_s_per_rad: float = 2.0e5
+    integral_gain_nm_per_rad: float = 2.0e5
+    torque_limit_nm: float = 80.0e3
+    controller: DriveController = 'stiff'
+    impedance_nm_s_per_rad: float | None = None
+    """None: derived from the string (see the class docstring)."""
+    soft_torque_corner_fraction: float = 0.5
+    """soft_torque: high-pass corner of the torque feedback as a fraction of the first
+    torsional frequency of the string (fixed top)."""
+    mean_torque_time_constant_s: float = 10.0
+    """impedance: the slowly varying mean torque (a first-order low-pass) that the speed
+    set-point does not respond to, so the mean speed stays at the command."""
+
+    def __post_init__(self):
+        _positive(self, 'inertia_kg_m2', 'torque_limit_nm', 'soft_torque_corner_fraction',
+                  'mean_torque_time_constant_s')
+        _non_negative(self, 'proportional_gain_nm_s_per_rad', 'integral_gain_nm_per_rad')
+        _at_most(self, 'inertia_kg_m2', DRIVE_INERTIA_MAX_KG_M2, DRIVE_INERTIA_REASON)
+        _at_most(self, 'proportional_gain_nm_s_per_rad', DRIVE_GAIN_MAX, DRIVE_GAIN_REASON)
+        _at_most(self, 'integral_gain_nm_per_rad', DRIVE_GAIN_MAX, DRIVE_GAIN_REASON)
+        _at_most(self, 'torque_limit_nm', DRIVE_TORQUE_MAX_NM, DRIVE_TORQUE_REASON)
+        if self.impedance_nm_s_per_rad is not None:
+            _positive(self, 'impedance_nm_s_per_rad')
+            _at_most(self, 'impedance_nm_s_per_rad', DRIVE_GAIN_MAX, DRIVE_GAIN_REASON)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Drawworks:
+    """The axial input (docs/DRIVES.md). ``hook_load``: the paper's hook force
+    (``operation.hook_load_n``); ``block_velocity``: the travelling block moves at
+    ``block_velocity_m_per_s`` (down > 0) and holds the top through a drill line of
+    ``line_stiffness_n_per_m`` and ``line_damping_n_s_per_m``, the hook load is measured;
+    ``autodriller``: the block velocity regulated (PI) to hold ``weight_on_bit_setpoint_n``
+    (> 0, compression).
+    """
+
+    mode: DrawworksMode = 'hook_load'
+    block_velocity_m_per_s: float = 0.0
+    line_stiffness_n_per_m: float = 2.0e7
+    line_damping_n_s_per_m: float = 2.0e5
+    weight_on_bit_setpoint_n: float = 100.0e3
+    autodriller_proportional_m_per_s_per_n: float = 1.0e-7
+    autodriller_integral_m_per_s2_per_n: float = 5.0e-9
+
+    def __post_init__(self):
+        if not math.isfinite(self.block_velocity_m_per_s):
+            raise ConfigValueError('block_velocity_m_per_s', 'must be finite')
+        _at_most(self, 'block_velocity_m_per_s', BLOCK_SPEED_MAX_M_PER_S, BLOCK_SPEED_REASON)
+        _positive(self, 'line_stiffness_n_per_m')
+        _non_negative(self, 'line_damping_n_s_per_m', 'weight_on_bit_setpoint_n',
+                      'autodriller_proportional_m_per_s_per_n',
+                      'autodriller_integral_m_per_s2_per_n')
+        _at_most(self, 'line_stiffness_n_per_m', LINE_STIFFNESS_MAX_N_PER_M,
+                 LINE_STIFFNESS_REASON)
+        _at_most(self, 'weight_on_bit_setpoint_n', WEIGHT_ON_BIT_MAX_N, WEIGHT_ON_BIT_REASON)
+# -- end of the rig's drives ---------------------------------------------------------------------
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class DrillStringConfig:
     """A whole vertical drill string, its hole, fluid, bit and the model choices."""
@@ -406,6 +496,8 @@ class DrillStringConfig:
     integration: Integration
     initial_conditions: InitialConditions
     output: Output
+    top_drive: TopDrive = TopDrive()
+    drawworks: Drawworks = Drawworks()
     source: str = field(default='<defaults>', compare=False)
     """Where the configuration came from (for error messages and log metadata)."""
 

@@ -165,6 +165,10 @@ class Simulator:
         self.substeps = 0
         """Sub-steps attempted in those retries (successful or not)."""
         self._on_bottom = self.on_bottom()
+        # The rig's drives (issue 13, docs/DRIVES.md): with top_drive.mode dynamic or a
+        # drawworks mode other than hook_load, they take over self.top_drive; else no change.
+        from drill_twin.dynamics.rig import attach_drives
+        attach_drives(self)
 
     # -- commands ------------------------------------------------------------------------
     def set_top_drive_speed(self, rad_per_s: float) -> None:

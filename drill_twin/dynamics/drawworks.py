@@ -1,0 +1,146 @@
+"""The drawworks: the travelling block moved at a commanded velocity, or by the autodriller
+to hold a WOB set-point, holding the string's top through the drill line (issue 13,
+docs/DRIVES.md).
+
+The paper's axial input is a hook force. A rig sets instead the block's motion; the hook load
+is what the line pulls, measured:
+
+    H = H_S + k_l (u_top - x_b) + c_l (u_top' - v_b),   H >= 0 (a slack line pulls nothing),
+
+u_top the top's axial displacement from the prestressed state (down > 0), x_b and v_b the
+block's displacement and velocity from the same state, H_S the prestressed hook load. The
+simulator takes the hook load of the coming step as a force; u_top after the step is affine
+in it (the axial block is linear; the bit force, the only non-linear axial force here, is
+taken from the last converged step), so H is solved implicitly with the string's axial
+block, as the top drive's torque is (drill_twin/dynamics/top_drive.py).
+
+The autodriller regulates v_b = v_I + K_p e, v_I' = K_i e, e = WOB_sp - WOB (WOB > 0 in
+compression, measured at the last step).
+
+Member 0 is the reference member (the hook load is shared by the batch).
+"""
+from __future__ import annotations
+
+import scipy.linalg as la
+
+from drill_twin.config.schema import Drawworks as DrawworksConfig
+from drill_twin.dynamics.top_drive import NEWMARK_BETA, NEWMARK_GAMMA
+
+
+class TopAxialMotion:
+    """The top's axial displacement and velocity after the coming step as affine functions of
+    the hook load of that step (member 0)."""
+
+    def __init__(self, simulator):
+        system = simulator.system
+        self.simulator = simulator
+        self.dt = simulator.dt
+        c = system.blocks['axial'].columns
+        self.columns = c
+        self.row = system.top_axial_row[c]
+        self.static_hook_load_n = system.model.prestress.hook_load_n
+        self.mass = system.mass[c, c]
+        self.damping = system.damping[c, c]
+        self.stiffness = system.stiffness[c, c]
+        dt = self.dt
+        effective = (self.mass + NEWMARK_GAMMA * dt * self.damping
+                     + NEWMARK_BETA * dt * dt * self.stiffness)
+        self._factor = la.lu_factor(effective)
+        response = -la.lu_solve(self._factor, self.row)           # da/dH
+        self.displacement_slope_m_per_n = float(NEWMARK_BETA * dt * dt * self.row @ response)
+        self.velocity_slope_m_per_s_per_n = float(NEWMARK_GAMMA * dt * self.row @ response)
+
+    def now(self) -> tuple[float, float]:
+        """(u_top, u_top') at the current state (m, m/s)."""
+        state = self.simulator.state
+        return (float(self.row @ state.q[0, self.columns]),
+                float(self.row @ state.q_rate[0, self.columns]))
+
+    def predicted(self, hook_load_n: float = 0.0) -> tuple[float, float]:
+        """(u_top, u_top') after the step under ``hook_load_n`` (m, m/s)."""
+        sim, dt = self.simulator, self.dt
+        c = self.columns
+        state = sim.state
+        q, v, a = state.q[0, c], state.q_rate[0, c], state.q_acceleration[0, c]
+        d_pred = q + dt * v + (0.5 - NEWMARK_BETA) * dt * dt * a
+        v_pred = v + (1.0 - NEWMARK_GAMMA) * dt * a
+        load = (sim.last.modal[0, c] - self.damping @ v_pred - self.stiffness @ d_pred
+                - self.row * (hook_load_n - self.static_hook_load_n))
+        a_new = la.lu_solve(self._factor, load)
+        return (float(self.row @ (d_pred + NEWMARK_BETA * dt * dt * a_new)),
+                float(self.row @ (v_pred + NEWMARK_GAMMA * dt * a_new)))
+
+
+class Drawworks:
+    """Block velocity input and autodriller (module docstring). ``before_step`` sets the
+    simulator's hook load for the coming step."""
+
+    def __init__(self, simulator, config: DrawworksConfig):
+        self.simulator = simulator
+        self.config = config
+        self.mode = config.mode
+        self.top = TopAxialMotion(simulator)
+        self.line_stiffness = config.line_stiffness_n_per_m
+        self.line_damping = config.line_damping_n_s_per_m
+        position, velocity = self.top.now()
+        self.block_position_m = position - (simulator.hook_load_command_n
+                                            - self.top.static_hook_load_n) / self.line_stiffness
+        """x_b, m (down > 0, from the prestressed state): where the line pulls the hook load
+        the simulator had (no jump when the drawworks takes over)."""
+        self.block_velocity_command_m_per_s = config.block_velocity_m_per_s
+        self.weight_on_bit_setpoint_n = config.weight_on_bit_setpoint_n
+        self.kp = config.autodriller_proportional_m_per_s_per_n
+        self.ki = config.autodriller_integral_m_per_s2_per_n
+        self.autodriller_integral_m_per_s = velocity      # bumpless: the top's start speed
+        self.block_velocity_m_per_s = (self.block_velocity_command_m_per_s
+                                       if self.mode == 'block_velocity' else velocity)
+        self.hook_load_n = float(simulator.hook_load_command_n)
+
+    def set_mode(self, mode: str) -> None:
+        """'block_velocity' or 'autodriller' (switch at run time; bumpless)."""
+        if mode not in ('block_velocity', 'autodriller'):
+            raise ValueError(f'drawworks mode must be block_velocity or autodriller, not {mode!r}')
+        if mode == 'autodriller' and self.mode != 'autodriller':
+            self.autodriller_integral_m_per_s = self.block_velocity_m_per_s
+        self.mode = mode
+
+    def set_block_velocity(self, m_per_s: float) -> None:
+        """The block velocity command (m/s, down > 0), followed in block_velocity mode."""
+        self.block_velocity_command_m_per_s = float(m_per_s)
+
+    def set_weight_on_bit_setpoint(self, newton: float) -> None:
+        """The autodriller's WOB set-point (N, > 0 in compression)."""
+        self.weight_on_bit_setpoint_n = float(newton)
+
+    def measured_weight_on_bit_n(self) -> float:
+        """WOB of the last step, > 0 in compression (N)."""
+        return float(-self.simulator.last.weight_on_bit_n[0])
+
+    def before_step(self) -> float:
+        """Block motion over the coming step and the hook load it implies (N)."""
+        dt = self.top.dt
+        if self.mode == 'autodriller':
+            error = self.weight_on_bit_setpoint_n - self.measured_weight_on_bit_n()
+            self.autodriller_integral_m_per_s += self.ki * dt * error
+            self.block_velocity_m_per_s = self.autodriller_integral_m_per_s + self.kp * error
+        else:
+            self.block_velocity_m_per_s = self.block_velocity_command_m_per_s
+        self.block_position_m += dt * self.block_velocity_m_per_s
+        u0, v0 = self.top.predicted(0.0)
+        k, c = self.line_stiffness, self.line_damping
+        rest = (self.top.static_hook_load_n + k * (u0 - self.block_position_m)
+                + c * (v0 - self.block_velocity_m_per_s))
+        slope = (1.0 - k * self.top.displacement_slope_m_per_n
+                 - c * self.top.velocity_slope_m_per_s_per_n)
+        self.hook_load_n = max(rest / slope, 0.0)
+        self.simulator.set_hook_load(self.hook_load_n)
+        return self.hook_load_n
+
+
+def line_hook_load_n(drawworks: Drawworks) -> float:
+    """The line's pull at the current state (N): the hook load as measured."""
+    u, v = drawworks.top.now()
+    return max(drawworks.top.static_hook_load_n
+               + drawworks.line_stiffness * (u - drawworks.block_position_m)
+               + drawworks.line_damping * (v - drawworks.block_velocity_m_per_s), 0.0)
+

@@ -1,0 +1,123 @@
+"""The drawworks (issue 13, docs/DRIVES.md): block-velocity input with the hook load
+measured, static equilibrium of the string against its weight, the autodriller's step
+response against the linearised closed form, and run-time switching."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from drill_twin.config import load_config
+from drill_twin.dynamics.bit_rock import BitRockLaw
+from drill_twin.dynamics.drawworks import line_hook_load_n
+from drill_twin.dynamics.rig import attach_drives, drawworks_of, set_axial_mode
+from drill_twin.dynamics.simulator import Simulator
+from drill_twin.twin.envelope import StringEnvelope
+
+QUIET = ['physics.contact=false', 'physics.kinetic_coupling=false',
+         'physics.finite_strain=false', 'reduced_basis.lateral_modes=0',
+         'initial_conditions.lateral_deflection_m=0', 'initial_conditions.steady_twist=true',
+         'operation.top_drive_speed_hz=2.0', 'bit_rock.static_weight_on_bit_n=-80e3',
+         'integration.time_step_s=0.01']
+"""The paper's string without lateral motion, drilling at 2 Hz and 80 kN: no stick-slip."""
+
+
+def _steady_rop(config):
+    law = BitRockLaw.from_config(config.bit_rock)
+    return float(law.steady_rop(config.operation.top_drive_speed_rad_per_s,
+                                config.bit_rock.static_weight_on_bit_n))
+
+
+def test_block_velocity_holds_the_string_in_static_equilibrium():
+    """The block lowered at the steady ROP: the measured hook load is the string's weight as
+    the model counts it (envelope: W = H_S - f_c) minus the WOB, within the damping drag."""
+    config = load_config(overrides=QUIET)
+    rop = _steady_rop(config)
+    config = load_config(overrides=QUIET + ['drawworks.mode=block_velocity',
+                                            f'drawworks.block_velocity_m_per_s={rop}'])
+    simulator = Simulator(config)
+    attach_drives(simulator)
+    drawworks = drawworks_of(simulator)
+    envelope = StringEnvelope.of(simulator.system)
+    balance, drag = [], []
+    for k in range(int(round(6.0 / simulator.dt))):
+        simulator.step()
+        if simulator.time_s > 3.0:
+            observed = simulator.observe(detailed=1)
+            hook = line_hook_load_n(drawworks)
+            # The force applied (solved with the bit force of the last step) is what the line
+            # pulls at the end of the step, to the lag of the bit force (about 1e-4 N here).
+            assert hook == pytest.approx(observed.hook_load_n, abs=1.0)
+            balance.append(hook - observed.weight_on_bit_n[0] - envelope.string_weight_n)
+            drag.append(envelope.axial_drag_n_s_per_m * observed.hook_velocity_m_per_s[0])
+    drag = float(np.mean(drag))
+    assert drag > 0
+    # H + WOB + C v = W: the residual is the drag, up to 2 C v.
+    assert np.max(np.abs(balance)) <= 2.0 * drag
+    assert -np.mean(balance) == pytest.approx(drag, rel=0.5)
+
+
+def _equivalent_stiffness(config) -> float:
+    compliance = 1.0 / config.drawworks.line_stiffness_n_per_m
+    for s in config.sections:
+        area = math.pi / 4 * (s.outer_diameter_m ** 2 - s.inner_diameter_m ** 2)
+        compliance += s.length_m / (s.young_modulus_pa * area)
+    return 1.0 / compliance
+
+
+def test_autodriller_step_response_on_wob_matches_the_linearised_loop():
+    """WOB' = k_eq (v_b - ROP(WOB)), v_b = v_I + K_p e, v_I' = K_i e, e = WOB_sp - WOB:
+    k_eq the line and the string's axial stiffness in series, ROP the bit-rock law
+    linearised at the start. Within 5 % of the 20 kN step."""
+    setpoint = 100e3
+    config = load_config(overrides=QUIET + ['drawworks.mode=autodriller',
+                                            f'drawworks.weight_on_bit_setpoint_n={setpoint}'])
+    simulator = Simulator(config)
+    attach_drives(simulator)
+    law = BitRockLaw.from_config(config.bit_rock)
+    omega = config.operation.top_drive_speed_rad_per_s
+    start = -config.bit_rock.static_weight_on_bit_n
+    rop_0 = float(law.steady_rop(omega, -start))
+    slope = float(law.steady_rop(omega, -start - 1.0)) - rop_0          # d ROP / d WOB
+    stiffness = _equivalent_stiffness(config)
+    kp = config.drawworks.autodriller_proportional_m_per_s_per_n
+    ki = config.drawworks.autodriller_integral_m_per_s2_per_n
+
+    def loop(_, x):
+        wob, integral = x
+        error = setpoint - wob
+        return [stiffness * (integral + kp * error - rop_0 - slope * (wob - start)), ki * error]
+
+    duration = 40.0
+    times = np.arange(1, int(round(duration / simulator.dt)) + 1) * simulator.dt
+    closed = solve_ivp(loop, (0, duration), [start, rop_0], t_eval=times, rtol=1e-9,
+                       atol=1e-9).y[0]
+    wob = []
+    for _ in times:
+        simulator.step()
+        wob.append(-simulator.last.weight_on_bit_n[0])
+    wob = np.array(wob)
+    assert closed[-1] - start > 0.9 * (setpoint - start)                 # it got there
+    assert np.max(np.abs(wob - closed)) < 0.05 * (setpoint - start)
+
+
+def test_axial_input_switches_at_run_time_without_a_jump():
+    config = load_config(overrides=QUIET)
+    simulator = Simulator(config)
+    attach_drives(simulator)
+    assert drawworks_of(simulator) is None
+    for _ in range(50):
+        simulator.step()
+    before = simulator.observe().hook_load_n
+    set_axial_mode(simulator, 'autodriller')
+    drawworks = drawworks_of(simulator)
+    drawworks.set_weight_on_bit_setpoint(-simulator.last.weight_on_bit_n[0])
+    simulator.step()
+    assert simulator.observe().hook_load_n == pytest.approx(before, abs=200.0)
+    set_axial_mode(simulator, 'hook_load')
+    assert drawworks_of(simulator) is None
+    held = simulator.hook_load_command_n
+    simulator.step()
+    assert simulator.observe().hook_load_n == held
