@@ -230,7 +230,8 @@ class TwinEngine:
         """
         self._check('top-drive torque limit', newton_metre, 0.0,
                     self.limits.top_drive_torque_limit_max_nm, 'N m',
-                    lambda v: None if v > 0 else 'the torque limit must be > 0 N m')
+                    lambda v: None if v > 0 else (f'top-drive torque limit command {v:g} N m '
+                                                  f'must be > 0 N m'))
         self._torque_limit_nm = float(newton_metre)
         self._apply_torque_limit()
 
