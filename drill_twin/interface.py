@@ -52,8 +52,9 @@ def cmd_applied_topic(command_topic: str) -> str:
     Return the echo topic of a command, e.g. '/drill_twin/cmd_applied/top_drive_speed'.
 
     sensor_msgs/msg/JointState: header.stamp = the twin time of the first model step that used
-    the command; name = [the command's short name]; position = [the value] (Float64 commands,
-    SI) or, for a mode, name = [short name, the mode] and no position.
+    the command; name = [the command's short name], position = [the value] (Float64 commands,
+    SI) or, for a mode, name = ['<short name>=<mode>'], position = [the mode's index in
+    MODE_COMMANDS], e.g. ['top_drive_mode=dynamic'], [1.0]; velocity and effort [0.0] (unused).
     """
     return f'/drill_twin/cmd_applied/{COMMANDS[command_topic]}'
 

@@ -87,8 +87,12 @@ BAD = [(itf.CMD_TOP_DRIVE_MODE, 'fast', 'top-drive mode', 'not one of kinematic,
 
 
 def test_drive_commands_echoes_surface_readings_and_log(drive_twin):
-    """Switch the drive and the drawworks by topic; every switch is echoed, stamped with the
-    step it acts in; bad ones are refused with a WARN; the readings are consistent."""
+    """
+    Switch the drive and the drawworks by topic.
+
+    Every switch is echoed, stamped with the step it acts in; bad ones are refused with a
+    WARN; the surface readings and the driller's view are consistent; all are in the log.
+    """
     from mcap_ros2.reader import read_ros2_messages
     from rcl_interfaces.msg import Log
 
@@ -109,8 +113,9 @@ def test_drive_commands_echoes_surface_readings_and_log(drive_twin):
         and len(twin.rosout(Log.WARN, '/drill_twin/cmd/')) >= len(BAD), 'echoes, rejections')
     (mode,), (controller,), (limit,) = (twin.echoes(t) for t in (
         itf.CMD_TOP_DRIVE_MODE, itf.CMD_TOP_DRIVE_CONTROLLER, itf.CMD_TOP_DRIVE_TORQUE_LIMIT))
-    assert list(mode.name) == ['top_drive_mode', 'dynamic'] and not list(mode.position)
-    assert list(controller.name) == ['top_drive_controller', 'soft_torque']
+    assert list(mode.name) == ['top_drive_mode=dynamic'] and list(mode.position) == [1.0]
+    assert list(controller.name) == ['top_drive_controller=soft_torque']
+    assert list(controller.position) == [1.0]
     assert list(limit.name) == ['top_drive_torque_limit'] and list(limit.position) == [60e3]
     drive = rig.top_drive_of(sim)
     assert twin.node.engine.top_drive_mode == 'dynamic'
@@ -141,8 +146,8 @@ def test_drive_commands_echoes_surface_readings_and_log(drive_twin):
     twin.spin_to(axial + 1.0)
 
     # Surface readings: one per tick, each topic in step with the bit state.
-    n = min(len(twin.received[topic]) for topic in itf.SURFACE_TOPICS + (itf.BIT_STATE,
-                                                                          itf.TOP_STATE))
+    n = min(len(twin.received[topic])
+            for topic in itf.SURFACE_TOPICS + (itf.BIT_STATE, itf.TOP_STATE))
     assert n > 100
     t = np.array([stamp_ns(m) * 1e-9 for m in twin.received[itf.BIT_STATE]])[:n]
     surface = {topic: twin.values(topic)[:n] for topic in itf.SURFACE_TOPICS}
@@ -206,8 +211,11 @@ def _ssi(bit_speed: np.ndarray) -> float:
 
 
 def _builtin_bit_speed(overrides) -> np.ndarray:
-    """The bit speed of every step of the same scenario with the built-in impedance law
-    switched on at ON_AT_S (the engine's command)."""
+    """
+    Return the bit speed of every step of the scenario under the built-in impedance law.
+
+    Switched on at ON_AT_S by the engine's command, as the node would.
+    """
     from drill_twin.config import load_config
     from drill_twin.twin.engine import EnsembleSettings, TwinEngine
 
@@ -224,41 +232,70 @@ def _builtin_bit_speed(overrides) -> np.ndarray:
     return np.array(speed)
 
 
-def test_an_external_impedance_controller_matches_the_built_in_one(drive_twin):
-    """examples/impedance_controller.py, switched on at 10 s during stick-slip from the
-    untwisted start, closes the loop through topics around the dynamic drive under the plain
-    PI; its stick-slip severity is the built-in law's (switched on at the same time), and it
-    measures its command-to-effect latency from the echoes."""
+def test_an_external_impedance_controller_matches_the_built_in_one(ros):  # noqa: F811
+    """
+    Close the loop through topics with examples/impedance_controller.py.
+
+    Switched on at 10 s during stick-slip from the untwisted start, around the dynamic drive
+    under the plain PI; its stick-slip severity is the built-in law's (switched on at the same
+    time), and it measures its command-to-effect latency from the echoes.
+
+    A probe hears the bit state only (the twin, the probe and the controller on one executor).
+    """
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from sensor_msgs.msg import JointState
+
+    from drill_twin.dynamics.top_drive import characteristic_impedance
+    from drill_twin.ros.parameters import TwinParameters
+    from drill_twin.ros.twin_node import create_twin_node
+
     sys.path.insert(0, str(EXAMPLES))
     try:
         from impedance_controller import ImpedanceController, pipe_impedance_nm_s_per_rad
     finally:
         sys.path.remove(str(EXAMPLES))
-    from drill_twin.dynamics.top_drive import characteristic_impedance
 
     overrides = TORSIONAL_AXIAL + [f'bit_rock.static_weight_on_bit_n={-WOB_N}',
                                    'top_drive.mode=dynamic', 'top_drive.controller=stiff']
-    twin = drive_twin(model_overrides=overrides, ensemble_members=0, duration_s=LOOP_S,
-                      log_enabled=False)
-    zeta = characteristic_impedance(twin.node.config)
+    twin = create_twin_node(TwinParameters.from_values(
+        {'fast': True, 'duration_s': LOOP_S, 'log_enabled': False, 'ensemble_members': 0,
+         'model_overrides': overrides}))
+    zeta = characteristic_impedance(twin.config)
     assert pipe_impedance_nm_s_per_rad() == pytest.approx(zeta, rel=1e-12)
-    controller = ImpedanceController(twin.node.engine.top_drive_speed_command, zeta,
+    controller = ImpedanceController(twin.engine.top_drive_speed_command, zeta,
                                      switch_drive=False, start_at_s=ON_AT_S)
-    twin.executor.add_node(controller)
-    deadline = time.monotonic() + WAIT_S
-    while not controller.publishers_matched():
-        assert time.monotonic() < deadline, 'DDS discovery did not complete'
-        time.sleep(0.01)
+    probe = ros.create_node('loop_probe')
+    heard = []
+    probe.create_subscription(JointState, itf.BIT_STATE, heard.append,
+                              QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE))
+    executor = SingleThreadedExecutor()
+    for node in (twin, controller, probe):
+        executor.add_node(node)
     try:
-        twin.spin_until(lambda: twin.node.done.done(), 'duration_s', timeout_s=20 * WAIT_S)
-        twin.spin_until(lambda: twin.last_stamp_s() >= LOOP_S - 1e-6, 'the last tick')
+        ends = [controller.publishers_matched,
+                lambda: twin._outputs[itf.BIT_STATE].get_subscription_count() > 0,
+                lambda: twin._outputs[itf.SURFACE_TORQUE].get_subscription_count() > 0,
+                lambda: twin._outputs[itf.TOP_STATE].get_subscription_count() > 0,
+                lambda: twin._outputs[itf.cmd_applied_topic(itf.CMD_TOP_DRIVE_SPEED)]
+                .get_subscription_count() > 0]
+        deadline = time.monotonic() + WAIT_S
+        while not all(end() for end in ends):
+            assert time.monotonic() < deadline, 'DDS discovery did not complete'
+            time.sleep(0.01)
+        deadline = time.monotonic() + 20 * WAIT_S
+        while not (twin.done.done() and heard and stamp_ns(heard[-1]) >= LOOP_S * 1e9 - 1e3):
+            assert time.monotonic() < deadline, 'timed out waiting for the run'
+            executor.spin_once(timeout_sec=0.1)
     finally:
-        twin.executor.remove_node(controller)
-        controller.destroy_node()
-    t, bit = twin.series(itf.BIT_STATE, 'velocity', 1)
+        twin.close()
+        executor.shutdown()
+        for node in (twin, controller, probe):
+            node.destroy_node()
+    t = np.array([stamp_ns(m) * 1e-9 for m in heard])
+    bit = np.array([m.velocity[1] for m in heard])
     external = _ssi(bit[t > LOOP_S - WINDOW_S + 1e-9])
-    built_in_speed = _builtin_bit_speed(overrides)
-    built_in = _ssi(built_in_speed[-int(round(WINDOW_S / DT_S)):])
+    built_in = _ssi(_builtin_bit_speed(overrides)[-int(round(WINDOW_S / DT_S)):])
     stiff = _ssi(bit[(t > ON_AT_S - WINDOW_S + 1e-9) & (t <= ON_AT_S + 1e-9)])
     wall = np.array([w for w, _ in controller.latencies])
     twin_latency = np.array([s for _, s in controller.latencies])
@@ -267,7 +304,7 @@ def test_an_external_impedance_controller_matches_the_built_in_one(drive_twin):
           f'{controller.latency_summary()}; '
           f'twin-time latency min {twin_latency.min():.3f} s max {twin_latency.max():.3f} s; '
           f'wall round trip max {1e3 * wall.max():.2f} ms')
-    assert controller.commands > 0.9 * LOOP_S / DT_S          # one command a tick
+    assert controller.commands > 0.9 * (LOOP_S - ON_AT_S) / DT_S      # one command a tick
     assert len(controller.latencies) > 0.5 * controller.commands
     assert twin_latency.min() >= DT_S - 1e-9                   # never before the reading
     assert stiff > 0.5                                          # stick-slip to remove

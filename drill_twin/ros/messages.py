@@ -265,13 +265,17 @@ def command_applied(command_topic: str, value, time_ns: int) -> JointState:
     """
     Echo a command as applied (:func:`drill_twin.interface.cmd_applied_topic`).
 
-    Stamped ``time_ns``, the twin time of the first step that used it; a Float64 command's
-    value in ``position``, a mode's after the command's name in ``name``.
+    Stamped ``time_ns``, the twin time of the first step that used it. A Float64 command:
+    name = [its short name], position = [the value]; a mode: name = ['<short name>=<mode>'],
+    position = [the mode's index in :data:`drill_twin.interface.MODE_COMMANDS`]. velocity and
+    effort are [0.0], unused (empty arrays after a non-empty one are padded by Fast-CDR in a
+    way the rosbags reader refuses; NaN would not compare equal to itself).
     """
     name = itf.COMMANDS[command_topic]
-    message = JointState(header=header(time_ns, ''))
-    if isinstance(value, str):
-        message.name = [name, value]
+    message = JointState(header=header(time_ns, ''), velocity=[0.0], effort=[0.0])
+    if command_topic in itf.MODE_COMMANDS:
+        message.name = [f'{name}={value}']
+        message.position = [float(itf.MODE_COMMANDS[command_topic].index(value))]
     else:
         message.name = [name]
         message.position = [float(value)]
