@@ -22,8 +22,9 @@ It also measures its own loop: every command's value is remembered with the wall
 published and the twin time of the reading it answered (the stamp of the latest
 /drill_twin/top/state, published in the same tick just before the surface readings); the echo
 on /drill_twin/cmd_applied/top_drive_speed, stamped with the twin time the command took effect,
-gives the latency in twin time and, on arrival, the round trip in wall time (command out to
-the twin, echo back).
+gives the latency in twin time, the time from the publication to the effect (the twin's
+clock against this system's clock: meaningful when the twin runs in real time on the same
+machine) and, on arrival, the round trip in wall time (command out to the twin, echo back).
 
 Run beside a twin (``drill-twin twin start --ros-args -p model_overrides:=[...]``):
 
@@ -89,8 +90,8 @@ class ImpedanceController(Node):
         self.mean_torque_nm = None
         self.speed_rad_per_s = None
         self.reading_stamp_ns = None
-        self.sent = {}               # command value -> (wall time published, reading stamp)
-        self.latencies = []          # (wall round trip s, twin time from reading to effect s)
+        self.sent = {}               # value -> (perf_counter, reading stamp, system time ns)
+        self.latencies = []          # (wall round trip, reading to effect, publish to effect) s
         self.commands = 0
         reliable = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
         self.speed_command = self.create_publisher(Float64, CMD_TOP_DRIVE_SPEED, reliable)
@@ -128,8 +129,9 @@ class ImpedanceController(Node):
         self.torque_nm += self.filter_weight * (message.data - self.torque_nm)
         torque = self.torque_nm
         self.mean_torque_nm += self.weight * (torque - self.mean_torque_nm)
-        setpoint = self.reference - (torque - self.mean_torque_nm) / self.impedance
-        self.sent[setpoint] = (time.perf_counter(), self.reading_stamp_ns)
+        # The twin accepts set-points from 0 up (a drive does not reverse to damp).
+        setpoint = max(self.reference - (torque - self.mean_torque_nm) / self.impedance, 0.0)
+        self.sent[setpoint] = (time.perf_counter(), self.reading_stamp_ns, time.time_ns())
         self.speed_command.publish(Float64(data=setpoint))
         self.commands += 1
 
@@ -137,10 +139,11 @@ class ImpedanceController(Node):
         sent = self.sent.pop(message.position[0], None)
         if sent is None:
             return
-        wall, reading_ns = sent
+        wall, reading_ns, published_ns = sent
         effect_ns = message.header.stamp.sec * 10 ** 9 + message.header.stamp.nanosec
         twin_s = (effect_ns - reading_ns) * 1e-9 if reading_ns is not None else math.nan
-        self.latencies.append((time.perf_counter() - wall, twin_s))
+        self.latencies.append((time.perf_counter() - wall, twin_s,
+                               (effect_ns - published_ns) * 1e-9))
         if len(self.sent) > 10000:                       # superseded ones are never echoed
             self.sent.clear()
 
@@ -148,15 +151,18 @@ class ImpedanceController(Node):
         """Return the median and 95th percentile of the latencies measured so far."""
         if not self.latencies:
             return 'no command echoed yet'
-        wall = sorted(w for w, _ in self.latencies)
-        twin = sorted(t for _, t in self.latencies if not math.isnan(t))
+        wall = sorted(w for w, _, _ in self.latencies)
+        twin = sorted(t for _, t, _ in self.latencies if not math.isnan(t))
+        effect = sorted(e for _, _, e in self.latencies)
 
         def pct(values, p):
             return values[min(len(values) - 1, int(p * len(values)))] if values else math.nan
         return (f'{len(self.latencies)} commands echoed of {self.commands} sent: wall round '
                 f'trip median {1e3 * pct(wall, 0.5):.2f} ms, 95 % {1e3 * pct(wall, 0.95):.2f} '
                 f'ms; twin time from the reading to the effect median {1e3 * pct(twin, 0.5):.0f}'
-                f' ms, 95 % {1e3 * pct(twin, 0.95):.0f} ms')
+                f' ms, 95 % {1e3 * pct(twin, 0.95):.0f} ms; from the publication to the effect '
+                f'(the twin clock against this system clock: meaningful in real time) median '
+                f'{1e3 * pct(effect, 0.5):.1f} ms, 95 % {1e3 * pct(effect, 0.95):.1f} ms')
 
 
 def main() -> None:

@@ -297,8 +297,8 @@ def test_an_external_impedance_controller_matches_the_built_in_one(ros):  # noqa
     external = _ssi(bit[t > LOOP_S - WINDOW_S + 1e-9])
     built_in = _ssi(_builtin_bit_speed(overrides)[-int(round(WINDOW_S / DT_S)):])
     stiff = _ssi(bit[(t > ON_AT_S - WINDOW_S + 1e-9) & (t <= ON_AT_S + 1e-9)])
-    wall = np.array([w for w, _ in controller.latencies])
-    twin_latency = np.array([s for _, s in controller.latencies])
+    wall = np.array([w for w, _, _ in controller.latencies])
+    twin_latency = np.array([s for _, s, _ in controller.latencies])
     print(f'\nSSI over the last {WINDOW_S:g} s of {LOOP_S:g} s at {WOB_N / 1e3:g} kN: external '
           f'{external:.4f}, built-in {built_in:.4f} (stiff before: {stiff:.4f}); '
           f'{controller.latency_summary()}; '
