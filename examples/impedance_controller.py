@@ -98,9 +98,12 @@ class ImpedanceController(Node):
         self.mode_command = self.create_publisher(String, CMD_TOP_DRIVE_MODE, reliable)
         self.controller_command = self.create_publisher(String, CMD_TOP_DRIVE_CONTROLLER,
                                                         reliable)
-        self.create_subscription(Float64, SURFACE_TORQUE, self._on_torque, reliable)
-        self.create_subscription(Float64, SURFACE_SPEED, self._on_speed, reliable)
+        # The top state first: an executor takes the ready subscriptions in the order they
+        # were created, and the twin publishes the top state just before the readings of the
+        # same tick, so the stamp noted is the reading's own.
         self.create_subscription(JointState, TOP_STATE, self._on_top_state, reliable)
+        self.create_subscription(Float64, SURFACE_SPEED, self._on_speed, reliable)
+        self.create_subscription(Float64, SURFACE_TORQUE, self._on_torque, reliable)
         self.create_subscription(JointState, APPLIED_TOP_DRIVE_SPEED, self._on_applied,
                                  reliable)
         self._switch_pending = switch_drive
