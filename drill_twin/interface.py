@@ -22,6 +22,42 @@ NAMESPACE_PREFIX = '/drill_twin'
 # Commands (subscriptions)
 CMD_TOP_DRIVE_SPEED = '/drill_twin/cmd/top_drive_speed'      # std_msgs/msg/Float64, rad/s
 CMD_HOOK_LOAD = '/drill_twin/cmd/hook_load'                  # std_msgs/msg/Float64, N
+# The rig's drives (issue 13, docs/DRIVES.md): mode switches as std_msgs/msg/String.
+CMD_TOP_DRIVE_MODE = '/drill_twin/cmd/top_drive_mode'        # String: kinematic | dynamic
+CMD_TOP_DRIVE_CONTROLLER = '/drill_twin/cmd/top_drive_controller'
+"""std_msgs/msg/String: stiff | soft_torque | impedance (the dynamic drive's controller)."""
+CMD_TOP_DRIVE_TORQUE_LIMIT = '/drill_twin/cmd/top_drive_torque_limit'   # Float64, N m, > 0
+CMD_AXIAL_MODE = '/drill_twin/cmd/axial_mode'
+"""std_msgs/msg/String: hook_load | block_velocity | autodriller (the drawworks' input)."""
+CMD_BLOCK_VELOCITY = '/drill_twin/cmd/block_velocity'        # Float64, m/s, down > 0
+CMD_WOB_SETPOINT = '/drill_twin/cmd/wob_setpoint'            # Float64, N, compression > 0
+
+TOP_DRIVE_MODES = ('kinematic', 'dynamic')
+TOP_DRIVE_CONTROLLERS = ('stiff', 'soft_torque', 'impedance')
+AXIAL_MODES = ('hook_load', 'block_velocity', 'autodriller')
+
+COMMANDS = {
+    CMD_TOP_DRIVE_SPEED: 'top_drive_speed', CMD_HOOK_LOAD: 'hook_load',
+    CMD_TOP_DRIVE_MODE: 'top_drive_mode', CMD_TOP_DRIVE_CONTROLLER: 'top_drive_controller',
+    CMD_TOP_DRIVE_TORQUE_LIMIT: 'top_drive_torque_limit', CMD_AXIAL_MODE: 'axial_mode',
+    CMD_BLOCK_VELOCITY: 'block_velocity', CMD_WOB_SETPOINT: 'wob_setpoint'}
+"""Every command topic -> its short name (the name of its echo, :func:`cmd_applied_topic`)."""
+MODE_COMMANDS = {CMD_TOP_DRIVE_MODE: TOP_DRIVE_MODES,
+                 CMD_TOP_DRIVE_CONTROLLER: TOP_DRIVE_CONTROLLERS, CMD_AXIAL_MODE: AXIAL_MODES}
+"""The std_msgs/msg/String commands and the values they accept; the others are Float64."""
+
+
+def cmd_applied_topic(command_topic: str) -> str:
+    """
+    Return the echo topic of a command, e.g. '/drill_twin/cmd_applied/top_drive_speed'.
+
+    sensor_msgs/msg/JointState: header.stamp = the twin time of the first model step that used
+    the command; name = [the command's short name], position = [the value] (Float64 commands,
+    SI) or, for a mode, name = ['<short name>=<mode>'], position = [the mode's index in
+    MODE_COMMANDS], e.g. ['top_drive_mode=dynamic'], [1.0]; velocity and effort [0.0] (unused).
+    """
+    return f'/drill_twin/cmd_applied/{COMMANDS[command_topic]}'
+
 
 # Publications
 BIT_STATE = '/drill_twin/bit/state'                          # sensor_msgs/msg/JointState
@@ -34,6 +70,40 @@ KPI_ROP = '/drill_twin/kpi/rop_m_per_h'                      # std_msgs/msg/Floa
 HOLE_DEPTH = '/drill_twin/hole/depth'                        # std_msgs/msg/Float64, m
 """The hole's depth (m), where the bit has drilled to: the bit's depth (the bit state's
 bit_axial position) is smaller while the bit is lifted off bottom."""
+# Surface measurements as a rig reads them (SI, std_msgs/msg/Float64, every tick).
+SURFACE_SPEED = '/drill_twin/surface/speed'                  # rad/s, the top's speed
+SURFACE_TORQUE = '/drill_twin/surface/torque'                # N m, the string's top torque
+SURFACE_HOOK_LOAD = '/drill_twin/surface/hook_load'          # N, what the hook holds
+SURFACE_BLOCK_POSITION = '/drill_twin/surface/block_position'
+"""m, down > 0 from the start: the travelling block (the drawworks' x_b), or the top's axial
+displacement when the hook force is the input (hook_load mode, the block follows the top)."""
+SURFACE_BIT_DEPTH = '/drill_twin/surface/bit_depth'          # m
+SURFACE_HOLE_DEPTH = '/drill_twin/surface/hole_depth'        # m
+SURFACE_ROP = '/drill_twin/surface/rop'                      # m/s, the hole's deepening rate
+SURFACE_WOB = '/drill_twin/surface/weight_on_bit'
+"""N, compression > 0: the surface WOB a rig computes, off-bottom hook load minus hook load
+(the off-bottom hook load is the string's weight as the model counts it)."""
+SURFACE_TOPICS = (SURFACE_SPEED, SURFACE_TORQUE, SURFACE_HOOK_LOAD, SURFACE_BLOCK_POSITION,
+                  SURFACE_BIT_DEPTH, SURFACE_HOLE_DEPTH, SURFACE_ROP, SURFACE_WOB)
+# The driller's view in drilling units, WITS record 1 mnemonics (std_msgs/msg/Float64, at
+# kpi_rate_hz): rpm, kN m, kN and klbf, m/h, m.
+DRILLER_PREFIX = '/drill_twin/driller/'
+DRILLER_TOPICS = {
+    'RPMA': ('rpm', SURFACE_SPEED), 'TQA': ('kN m', SURFACE_TORQUE),
+    'HKLA': ('kN', SURFACE_HOOK_LOAD), 'HKLA_klbf': ('klbf', SURFACE_HOOK_LOAD),
+    'WOBA': ('kN', SURFACE_WOB), 'WOBA_klbf': ('klbf', SURFACE_WOB),
+    'ROPA': ('m/h', SURFACE_ROP), 'DBTM': ('m', SURFACE_BIT_DEPTH),
+    'DMEA': ('m', SURFACE_HOLE_DEPTH)}
+"""WITS name -> (unit, the SI topic it is converted from); topic DRILLER_PREFIX + name."""
+NEWTON_PER_KLBF = 4448.2216152605
+"""1 klbf in N (1000 lbf, 1 lbf = 4.4482216152605 N exactly)."""
+
+
+def driller_topic(wits_name: str) -> str:
+    """Return the topic of a driller's-view value, e.g. 'RPMA' -> '/drill_twin/driller/RPMA'."""
+    return DRILLER_PREFIX + wits_name
+
+
 ENSEMBLE_MEAN = '/drill_twin/ensemble/bit_state/mean'        # sensor_msgs/msg/JointState
 ENSEMBLE_LOWER = '/drill_twin/ensemble/bit_state/lower'      # 2.5 % quantile, JointState
 ENSEMBLE_UPPER = '/drill_twin/ensemble/bit_state/upper'      # 97.5 % quantile, JointState

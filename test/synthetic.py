@@ -23,6 +23,7 @@ from drill_twin.recording.topics import twin_topics
 from drill_twin.ros import messages
 from drill_twin.twin.engine import BitState
 from drill_twin.twin.stepping import TwinEvent
+from drill_twin.twin.surface import SurfaceReadings
 
 DEFAULT_START_NS = 1_700_000_000_000_000_000
 """2023-11-14T22:13:20Z, an arbitrary epoch for synthetic logs."""
@@ -88,7 +89,17 @@ def _snapshot(t: float, step: int, stations, state: dict) -> SimpleNamespace:
         ensemble_upper=bit(1.96), ensemble_step=step, observation=observation,
         stick_slip_severity=1.1 * (1.0 + 0.05 * math.sin(0.1 * phase)),
         mse_pa=abs(wob) / 0.05 + 2.0 * math.pi * abs(tob) * bit_speed / (0.05 * max(rop, 1e-4)),
-        rop_m_per_h=rop * 3600.0, events=events, top_speed=top_speed, hook_load=hook_load)
+        rop_m_per_h=rop * 3600.0, events=events, top_speed=top_speed, hook_load=hook_load,
+        surface=SurfaceReadings(
+            speed_rad_per_s=top_speed, torque_nm=float(observation.top_torque_nm[0]),
+            hook_load_n=observation.hook_load_n, block_position_m=depth - depth0,
+            bit_depth_m=depth, hole_depth_m=depth, rop_m_per_s=rop, weight_on_bit_n=-wob))
+
+
+SYNTHETIC_COMMANDS = {itf.CMD_TOP_DRIVE_MODE: 'dynamic', itf.CMD_TOP_DRIVE_CONTROLLER: 'stiff',
+                      itf.CMD_TOP_DRIVE_TORQUE_LIMIT: 60e3, itf.CMD_AXIAL_MODE: 'hook_load',
+                      itf.CMD_BLOCK_VELOCITY: 2e-3, itf.CMD_WOB_SETPOINT: 1e5}
+"""The drive commands of the synthetic log (besides the speed and the hook load)."""
 
 
 def synthetic_messages(duration_s: float = 10.0, rate_hz: float = 100.0,
@@ -112,6 +123,13 @@ def synthetic_messages(duration_s: float = 10.0, rate_hz: float = 100.0,
             yield TimedMessage(itf.CMD_TOP_DRIVE_SPEED, messages.scalar(snapshot.top_speed),
                                t_ns)
             yield TimedMessage(itf.CMD_HOOK_LOAD, messages.scalar(snapshot.hook_load), t_ns)
+            values = dict(SYNTHETIC_COMMANDS, **{itf.CMD_TOP_DRIVE_SPEED: snapshot.top_speed,
+                                                 itf.CMD_HOOK_LOAD: snapshot.hook_load})
+            for topic, value in values.items():
+                if topic in SYNTHETIC_COMMANDS:
+                    yield TimedMessage(topic, messages.command_message(topic, value), t_ns)
+                yield TimedMessage(itf.cmd_applied_topic(topic),
+                                   messages.command_applied(topic, value, t_ns), t_ns)
         plan = messages.TickPlan(kpis=True, ensemble_stamp_ns=t_ns, clock=True)
         for topic, message in messages.tick_messages(snapshot, stations, t_ns, plan):
             yield TimedMessage(topic, message, t_ns)

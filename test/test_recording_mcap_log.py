@@ -77,7 +77,7 @@ def test_every_interface_type_is_recorded(written):
     assert type_names == {
         'sensor_msgs/msg/JointState', 'geometry_msgs/msg/WrenchStamped', 'sensor_msgs/msg/Imu',
         'geometry_msgs/msg/Vector3Stamped', 'std_msgs/msg/Float64MultiArray',
-        'std_msgs/msg/Float64', 'diagnostic_msgs/msg/DiagnosticArray',
+        'std_msgs/msg/Float64', 'std_msgs/msg/String', 'diagnostic_msgs/msg/DiagnosticArray',
         'rosgraph_msgs/msg/Clock', 'rcl_interfaces/msg/Log'}
 
 

@@ -595,8 +595,10 @@ def test_log_is_complete_and_equal_to_what_was_heard(recorded):
     for split in reader.log_files(path):               # the bag's MCAP files
         for item in read_ros2_messages(str(split)):
             logged[item.channel.topic].append((item.log_time_ns, item.ros_msg))
-    expected_topics = set(recorded['twin'].node._published_topics()) | {
-        itf.CMD_TOP_DRIVE_SPEED, itf.CMD_HOOK_LOAD, itf.ROSOUT}
+    sent = {itf.CMD_TOP_DRIVE_SPEED, itf.CMD_HOOK_LOAD}
+    never_echoed = {itf.cmd_applied_topic(c) for c in itf.COMMANDS if c not in sent}
+    expected_topics = (set(recorded['twin'].node._published_topics()) - never_echoed) | sent | {
+        itf.ROSOUT}
     assert set(logged) == expected_topics
     for topic in recorded['twin'].node._published_topics():
         if topic != itf.CLOCK:            # best effort to the probe: it may miss some
@@ -627,6 +629,11 @@ def test_log_is_complete_and_equal_to_what_was_heard(recorded):
                                                                 abs=1e-12)
     assert top[hook_at].effort[1] == recorded['hook_before']
     assert top[hook_at + TICK_NS].effort[1] == hook.data
+    # Their echoes: stamped with the same time, the values as applied.
+    (_, echo), = logged[itf.cmd_applied_topic(itf.CMD_TOP_DRIVE_SPEED)]
+    assert stamp_ns(echo) == speed_at and list(echo.position) == [SPEED_COMMAND]
+    (_, echo), = logged[itf.cmd_applied_topic(itf.CMD_HOOK_LOAD)]
+    assert stamp_ns(echo) == hook_at and list(echo.position) == [hook.data]
 
     rosout = [m for _, m in logged[itf.ROSOUT]]
     assert rosout[0].msg.startswith('drill_twin ') and 'logging to' in rosout[0].msg

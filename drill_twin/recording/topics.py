@@ -26,6 +26,7 @@ IMU = 'sensor_msgs/msg/Imu'
 VECTOR3_STAMPED = 'geometry_msgs/msg/Vector3Stamped'
 FLOAT64_MULTI_ARRAY = 'std_msgs/msg/Float64MultiArray'
 FLOAT64 = 'std_msgs/msg/Float64'
+STRING = 'std_msgs/msg/String'
 DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
 CLOCK = 'rosgraph_msgs/msg/Clock'
 LOG = 'rcl_interfaces/msg/Log'
@@ -49,9 +50,14 @@ def twin_topics(stations_m: Iterable[float] = (), *, tf: bool = False
     :param tf: include /tf and /tf_static (published where tf2_msgs is installed).
     """
     state, diagnostics, clock = itf.STATE_QOS, itf.DIAGNOSTICS_QOS, itf.CLOCK_QOS
-    result = {
-        itf.CMD_TOP_DRIVE_SPEED: TopicSpec(FLOAT64, state),
-        itf.CMD_HOOK_LOAD: TopicSpec(FLOAT64, state),
+    result = {command: TopicSpec(STRING if command in itf.MODE_COMMANDS else FLOAT64, state)
+              for command in itf.COMMANDS}
+    result.update({itf.cmd_applied_topic(command): TopicSpec(JOINT_STATE, state)
+                   for command in itf.COMMANDS})
+    result.update({topic: TopicSpec(FLOAT64, state) for topic in itf.SURFACE_TOPICS})
+    result.update({itf.driller_topic(name): TopicSpec(FLOAT64, state)
+                   for name in itf.DRILLER_TOPICS})
+    result.update({
         itf.BIT_STATE: TopicSpec(JOINT_STATE, state),
         itf.BIT_WRENCH: TopicSpec(WRENCH_STAMPED, state),
         itf.TOP_STATE: TopicSpec(JOINT_STATE, state),
@@ -66,7 +72,7 @@ def twin_topics(stations_m: Iterable[float] = (), *, tf: bool = False
         itf.DIAGNOSTICS: TopicSpec(DIAGNOSTIC_ARRAY, diagnostics),
         itf.CLOCK: TopicSpec(CLOCK, clock),
         itf.ROSOUT: TopicSpec(LOG, ROSOUT_QOS),
-    }
+    })
     for x_m in stations_m:
         result[itf.vibration_imu_topic(x_m)] = TopicSpec(IMU, state)
         result[itf.vibration_displacement_topic(x_m)] = TopicSpec(VECTOR3_STAMPED, state)

@@ -17,7 +17,7 @@ from geometry_msgs.msg import Transform, TransformStamped, Vector3Stamped, Wrenc
 from rcl_interfaces.msg import Log
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState
-from std_msgs.msg import Float64, Float64MultiArray, Header, MultiArrayDimension
+from std_msgs.msg import Float64, Float64MultiArray, Header, MultiArrayDimension, String
 
 from drill_twin import interface as itf
 from drill_twin.twin.engine import BitState, TwinEvent, TwinSnapshot
@@ -186,11 +186,11 @@ def every_tick_topic(topic: str) -> bool:
     """
     Tell whether ``topic`` is one of the states every tick publishes.
 
-    Those of :func:`state_messages` and the moving TF frames: the log thins them to the
-    node's ``log_state_rate_hz``.
+    Those of :func:`state_messages`, the surface readings and the moving TF frames: the log
+    thins them to the node's ``log_state_rate_hz``.
     """
     return (topic in (itf.BIT_STATE, itf.BIT_WRENCH, itf.TOP_STATE, itf.CONTACT_FORCES, itf.TF)
-            or topic.startswith(VIBRATION_PREFIX))
+            or topic in itf.SURFACE_TOPICS or topic.startswith(VIBRATION_PREFIX))
 
 
 VIBRATION_PREFIX = '/drill_twin/vibration/'
@@ -224,11 +224,12 @@ def tick_messages(snapshot: TwinSnapshot, stations_m, time_ns: int, plan: TickPl
     """
     (topic, message) of everything a tick publishes, in order.
 
-    The states, then what ``plan`` says is due (KPIs, ensemble, TF), the events, /clock.
+    The states and surface readings, then what ``plan`` says is due (KPIs and the driller's
+    view, ensemble, TF), the events, /clock.
     """
-    out = state_messages(snapshot, stations_m, time_ns)
+    out = state_messages(snapshot, stations_m, time_ns) + surface_messages(snapshot)
     if plan.kpis:
-        out += kpi_messages(snapshot)
+        out += kpi_messages(snapshot) + driller_messages(snapshot)
     if plan.ensemble_stamp_ns is not None and snapshot.ensemble_mean is not None:
         out += ensemble_messages(snapshot, plan.ensemble_stamp_ns)
     if plan.tf:
@@ -246,6 +247,64 @@ def kpi_messages(snapshot: TwinSnapshot):
             (itf.KPI_ROP, snapshot.rop_m_per_h),
             (itf.HOLE_DEPTH, float(snapshot.observation.hole_depth_m[0])))
     return [(topic, scalar(value)) for topic, value in kpis if value is not None]
+
+
+def surface_values(snapshot: TwinSnapshot) -> dict:
+    """Return {surface topic: value (SI)} of the snapshot's surface readings."""
+    s = snapshot.surface
+    return {itf.SURFACE_SPEED: s.speed_rad_per_s, itf.SURFACE_TORQUE: s.torque_nm,
+            itf.SURFACE_HOOK_LOAD: s.hook_load_n, itf.SURFACE_BLOCK_POSITION: s.block_position_m,
+            itf.SURFACE_BIT_DEPTH: s.bit_depth_m, itf.SURFACE_HOLE_DEPTH: s.hole_depth_m,
+            itf.SURFACE_ROP: s.rop_m_per_s, itf.SURFACE_WOB: s.weight_on_bit_n}
+
+
+def surface_messages(snapshot: TwinSnapshot):
+    """(topic, Float64) of the surface readings in SI (none without readings)."""
+    if snapshot.surface is None:
+        return []
+    return [(topic, Float64(data=value)) for topic, value in surface_values(snapshot).items()]
+
+
+DRILLER_SCALE = {'rpm': 60.0 / (2.0 * math.pi), 'kN m': 1e-3, 'kN': 1e-3,
+                 'klbf': 1.0 / itf.NEWTON_PER_KLBF, 'm/h': 3600.0, 'm': 1.0}
+"""Drilling unit -> its value per SI unit (rad/s, N m, N, m/s, m)."""
+
+
+def driller_messages(snapshot: TwinSnapshot):
+    """(topic, Float64) of the driller's view: the readings in drilling units, WITS names."""
+    if snapshot.surface is None:
+        return []
+    si = surface_values(snapshot)
+    return [(itf.driller_topic(name), Float64(data=DRILLER_SCALE[unit] * si[source]))
+            for name, (unit, source) in itf.DRILLER_TOPICS.items()]
+
+
+def command_message(command_topic: str, value):
+    """Return the command as its subscription receives it: String for a mode, else Float64."""
+    if command_topic in itf.MODE_COMMANDS:
+        return String(data=str(value))
+    return Float64(data=float(value))
+
+
+def command_applied(command_topic: str, value, time_ns: int) -> JointState:
+    """
+    Echo a command as applied (:func:`drill_twin.interface.cmd_applied_topic`).
+
+    Stamped ``time_ns``, the twin time of the first step that used it. A Float64 command:
+    name = [its short name], position = [the value]; a mode: name = ['<short name>=<mode>'],
+    position = [the mode's index in :data:`drill_twin.interface.MODE_COMMANDS`]. velocity and
+    effort are [0.0], unused (empty arrays after a non-empty one are padded by Fast-CDR in a
+    way the rosbags reader refuses; NaN would not compare equal to itself).
+    """
+    name = itf.COMMANDS[command_topic]
+    message = JointState(header=header(time_ns, ''), velocity=[0.0], effort=[0.0])
+    if command_topic in itf.MODE_COMMANDS:
+        message.name = [f'{name}={value}']
+        message.position = [float(itf.MODE_COMMANDS[command_topic].index(value))]
+    else:
+        message.name = [name]
+        message.position = [float(value)]
+    return message
 
 
 def ensemble_messages(snapshot: TwinSnapshot, time_ns: int):
@@ -307,6 +366,10 @@ def publications(stations_m, *, ensemble: bool, clock: bool, tf: bool) -> dict:
               itf.KPI_STICK_SLIP: (Float64, state), itf.KPI_MSE: (Float64, state),
               itf.KPI_ROP: (Float64, state), itf.HOLE_DEPTH: (Float64, state),
               itf.DIAGNOSTICS: (DiagnosticArray, itf.DIAGNOSTICS_QOS)}
+    topics.update({topic: (Float64, state) for topic in itf.SURFACE_TOPICS})
+    topics.update({itf.driller_topic(name): (Float64, state) for name in itf.DRILLER_TOPICS})
+    topics.update({itf.cmd_applied_topic(command): (JointState, state)
+                   for command in itf.COMMANDS})
     if ensemble:
         for topic in (itf.ENSEMBLE_MEAN, itf.ENSEMBLE_LOWER, itf.ENSEMBLE_UPPER):
             topics[topic] = (JointState, state)

@@ -15,9 +15,12 @@ machine) takes extra steps, at most as many again as a tick's, until it has caug
 With ``use_sim_time`` it follows an external /clock (a simulator, a bag player): its clock
 starts at the first /clock message, each tick steps to the latest one, and it publishes no
 /clock. TF (/tf_static once, /tf at ``kpi_rate_hz``) where tf2_msgs is installed. Commands arrive
-on two Float64 topics and take effect on the next model step; they are counted on arrival,
-with those rejected, dropped (gaps in the publisher's sequence numbers) and superseded (a
-later command arrived before the tick). Health is reported from a wall-clock timer of its own
+on their topics (Float64 values, String modes: :data:`drill_twin.interface.COMMANDS`) and take
+effect on the next model step; each applied one is echoed on ``/drill_twin/cmd_applied/<name>``
+stamped with the twin time of that step. They are counted on arrival, with those rejected,
+dropped (gaps in the publisher's sequence numbers) and superseded (a later command arrived
+before the tick). The surface readings are published every tick, the driller's view (WITS
+names, drilling units) with the KPIs. Health is reported from a wall-clock timer of its own
 (``health_rate_hz``), so a twin whose clock stands still still reports. Every published
 message, the commands as applied and the twin's own log lines are recorded to an MCAP log.
 Header stamps, /clock and the log times use the twin's clock: the ROS time at start plus the
@@ -39,7 +42,7 @@ from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock as ClockMessage
-from std_msgs.msg import Float64
+from std_msgs.msg import Float64, String
 from threadpoolctl import threadpool_limits
 
 from drill_twin import __version__
@@ -53,6 +56,17 @@ from drill_twin.ros.parameters import (BY_NAME, ParameterError, PARAMETERS, Twin
                                        unsafe_change_reason, validate_ros_arguments)
 from drill_twin.twin.engine import CommandRejected, TwinEngine, TwinStalled
 from drill_twin.twin.health import HealthMonitor
+
+_ENGINE_COMMANDS = {
+    itf.CMD_TOP_DRIVE_SPEED: 'set_top_drive_speed', itf.CMD_HOOK_LOAD: 'set_hook_load',
+    itf.CMD_TOP_DRIVE_MODE: 'set_top_drive_mode',
+    itf.CMD_TOP_DRIVE_CONTROLLER: 'set_top_drive_controller',
+    itf.CMD_TOP_DRIVE_TORQUE_LIMIT: 'set_top_drive_torque_limit',
+    itf.CMD_AXIAL_MODE: 'set_axial_mode', itf.CMD_BLOCK_VELOCITY: 'set_block_velocity',
+    itf.CMD_WOB_SETPOINT: 'set_weight_on_bit_setpoint'}
+"""Command topic -> the TwinEngine method that checks and applies it."""
+_LIVE_VIEW_KEYS = {itf.CMD_TOP_DRIVE_SPEED: 'top_drive_speed_rad_per_s',
+                   itf.CMD_HOOK_LOAD: 'hook_load_n'}
 
 FAST_PERIOD_S = 1e-6
 FROZEN_AFTER_S = 1.0
@@ -189,7 +203,7 @@ class TwinNode(Node):
         self._latest_health = {}
         self.commands_superseded = 0
         self.commands_dropped = 0
-        self._pending_commands = set()          # accepted since the last tick
+        self._pending_commands = {}             # topic -> value accepted since the last tick
         self._early_commands = []               # accepted before an external clock started
         self._sequence = {}                     # last publication sequence number, by topic
         self._external_now_ns = None            # the latest /clock (use_sim_time)
@@ -197,9 +211,10 @@ class TwinNode(Node):
     def _subscribe(self) -> None:
         command_qos = rclpy_qos_profile(itf.COMMAND_QOS)
         self._commands = {
-            topic: self.create_subscription(Float64, topic, callback, command_qos)
-            for topic, callback in ((itf.CMD_TOP_DRIVE_SPEED, self._on_top_drive_speed),
-                                    (itf.CMD_HOOK_LOAD, self._on_hook_load))}
+            topic: self.create_subscription(
+                String if topic in itf.MODE_COMMANDS else Float64, topic,
+                lambda message, info, t=topic: self._command(t, message, info), command_qos)
+            for topic in itf.COMMANDS}
         if self.sim_time:
             self._clock_subscription = self.create_subscription(
                 ClockMessage, itf.CLOCK, self._on_clock, rclpy_qos_profile(itf.CLOCK_QOS))
@@ -319,14 +334,10 @@ class TwinNode(Node):
                 self.stations_m, now)), now)
 
     # -- commands ------------------------------------------------------------------------
-    def _on_top_drive_speed(self, message: Float64, info) -> None:
-        self._command(itf.CMD_TOP_DRIVE_SPEED, message, info, self.engine.set_top_drive_speed)
-
-    def _on_hook_load(self, message: Float64, info) -> None:
-        self._command(itf.CMD_HOOK_LOAD, message, info, self.engine.set_hook_load)
-
-    def _command(self, topic, message, info, apply) -> None:
+    def _command(self, topic, message, info) -> None:
+        """Apply a command (it takes effect on the next model step), log it, echo it then."""
         self._count_dropped(topic, info)
+        apply = getattr(self.engine, _ENGINE_COMMANDS[topic])
         try:
             apply(message.data)                     # counts it (received, rejected)
         except CommandRejected as error:
@@ -334,15 +345,13 @@ class TwinNode(Node):
             return
         if topic in self._pending_commands:         # the previous one never took effect
             self.commands_superseded += 1
-        self._pending_commands.add(topic)
+        self._pending_commands[topic] = message.data
         if not self.pacer.started:
             self._early_commands.append((topic, message))
         elif self.log:
             self.log.write(topic, message, self.twin_time_ns())    # takes effect at this time
-        if self.live_view:
-            key = ('top_drive_speed_rad_per_s' if topic == itf.CMD_TOP_DRIVE_SPEED
-                   else 'hook_load_n')
-            self.live_view.command(self.engine.time_s, **{key: message.data})
+        if self.live_view and topic in _LIVE_VIEW_KEYS:
+            self.live_view.command(self.engine.time_s, **{_LIVE_VIEW_KEYS[topic]: message.data})
 
     def _count_dropped(self, topic: str, info) -> None:
         """
@@ -365,11 +374,16 @@ class TwinNode(Node):
         if self.done.done() or not self.context.ok():       # stopping: publish nothing more
             return
         steps = self.pacer.steps(self._clock_now_ns(), self.engine.step_index)
+        effect_ns = self.twin_time_ns()     # the start of the first step the commands act in
+        applied = dict(self._pending_commands)
         snapshot = self._advance(steps) if steps else None
         if snapshot is None:                # not due yet, or the model stalled (reported)
             return
         now = self.twin_time_ns()
         log_states = self._log_states_due(now)
+        for topic, value in applied.items():
+            self._publish(itf.cmd_applied_topic(topic),
+                          messages.command_applied(topic, value, effect_ns), now)
         for topic, message in messages.tick_messages(snapshot, self.stations_m, now,
                                                      self._plan(snapshot)):
             self._publish(topic, message, now, log=messages.logged(topic, log_states))

@@ -30,12 +30,14 @@ import numpy as np
 from drill_twin.config import ConfigError
 from drill_twin.config.schema import DrillStringConfig
 from drill_twin.dynamics import kpi
+from drill_twin.dynamics import rig
 from drill_twin.dynamics.simulator import Observation, Simulator
 from drill_twin.twin.ensemble import (BIT_FIELDS, EnsembleFailed, EnsembleResult,
                                       EnsembleSettings, LocalEnsemble, open_ensemble)
 from drill_twin.twin.envelope import StringEnvelope
 from drill_twin.twin.stepping import (MAX_CONSECUTIVE_FAILURES, GuardedSimulator, TwinEvent,
                                       TwinStalled)
+from drill_twin.twin.surface import SurfaceReadings, surface_readings
 
 __all__ = ['BitState', 'CommandLimits', 'CommandRejected', 'EnsembleSettings', 'TwinEngine',
            'TwinEvent', 'TwinSnapshot', 'TwinStalled', 'MAX_CONSECUTIVE_FAILURES']
@@ -53,6 +55,7 @@ class CommandLimits:
     top_drive_speed_max_rad_per_s: float = 30.0
     hook_load_min_n: float = 0.0
     hook_load_max_n: float = 5.0e6
+    top_drive_torque_limit_max_nm: float = 500.0e3
 
 
 @dataclass(frozen=True)
@@ -95,6 +98,7 @@ class TwinSnapshot:
     rop_m_per_h: float | None
     events: tuple
     health: dict
+    surface: SurfaceReadings | None = None
 
 
 class TwinEngine:
@@ -134,6 +138,10 @@ class TwinEngine:
         self._iterations = deque(maxlen=100)
         self.rejected_commands = 0
         self.commands_received = 0
+        self._controller = config.top_drive.controller
+        self._torque_limit_nm = None
+        self._block_velocity = None
+        self._weight_on_bit_setpoint = None
         try:
             self.ensemble_runner = open_ensemble(config, ensemble, self.simulator.system)
         except EnsembleFailed as error:
@@ -183,8 +191,101 @@ class TwinEngine:
         string's weight minus the largest WOB up to the weight plus the drag of a string
         rising at block speed, :class:`~drill_twin.twin.envelope.StringEnvelope`)."""
         self._check('hook load', newton, self.limits.hook_load_min_n,
-                    self.limits.hook_load_max_n, 'N', self.envelope.hook_load_reason)
+                    self.limits.hook_load_max_n, 'N', self._hook_load_reason)
         self.simulator.set_hook_load(float(newton))
+
+    def _hook_load_reason(self, newton: float) -> str | None:
+        if rig.drawworks_of(self.simulator) is not None:
+            return (f'the hook load is what the drill line pulls in axial mode '
+                    f'{self.axial_mode} (switch the axial mode to hook_load first)')
+        return self.envelope.hook_load_reason(newton)
+
+    # The rig's drives (issue 13, docs/DRIVES.md): the mean model's simulator takes them; the
+    # ensemble keeps its configured drives under the speed set-point and the hook load the
+    # mean model applies (``_exchange_with_ensemble``).
+    def set_top_drive_mode(self, mode: str) -> None:
+        """Switch the top drive, 'kinematic' or 'dynamic' (bumpless); raises CommandRejected."""
+        self._check_choice('top-drive mode', mode, ('kinematic', 'dynamic'))
+        rig.set_top_drive_mode(self.simulator, mode, self._controller)
+        self._apply_torque_limit()
+
+    def set_top_drive_controller(self, controller: str) -> None:
+        """
+        Set the dynamic drive's controller: 'stiff', 'soft_torque' or 'impedance'.
+
+        Kept for when the drive becomes dynamic; raises CommandRejected.
+        """
+        self._check_choice('top-drive controller', controller,
+                           ('stiff', 'soft_torque', 'impedance'))
+        self._controller = controller
+        if self.top_drive_mode == 'dynamic':
+            rig.set_top_drive_mode(self.simulator, 'dynamic', controller)
+            self._apply_torque_limit()
+
+    def set_top_drive_torque_limit(self, newton_metre: float) -> None:
+        """
+        Set the dynamic drive's motor torque limit (N m, > 0).
+
+        Kept for when the drive becomes dynamic; raises CommandRejected.
+        """
+        self._check('top-drive torque limit', newton_metre, 0.0,
+                    self.limits.top_drive_torque_limit_max_nm, 'N m',
+                    lambda v: None if v > 0 else (f'top-drive torque limit command {v:g} N m '
+                                                  f'must be > 0 N m'))
+        self._torque_limit_nm = float(newton_metre)
+        self._apply_torque_limit()
+
+    def set_axial_mode(self, mode: str) -> None:
+        """Switch the axial input (hook_load, block_velocity, autodriller; bumpless)."""
+        self._check_choice('axial mode', mode, ('hook_load', 'block_velocity', 'autodriller'))
+        fresh = rig.drawworks_of(self.simulator) is None
+        rig.set_axial_mode(self.simulator, mode)
+        drawworks = rig.drawworks_of(self.simulator)
+        if fresh and drawworks is not None:          # the set-points sent before the switch
+            if self._block_velocity is not None:
+                drawworks.set_block_velocity(self._block_velocity)
+            if self._weight_on_bit_setpoint is not None:
+                drawworks.set_weight_on_bit_setpoint(self._weight_on_bit_setpoint)
+
+    def set_block_velocity(self, m_per_s: float) -> None:
+        """Set the block velocity (m/s, down > 0) block_velocity mode follows."""
+        from drill_twin.twin.envelope import PLAUSIBLE_BLOCK_SPEED_M_PER_S as fastest
+        self._check('block velocity', m_per_s, -fastest, fastest, 'm/s')
+        self._block_velocity = float(m_per_s)
+        if (drawworks := rig.drawworks_of(self.simulator)) is not None:
+            drawworks.set_block_velocity(self._block_velocity)
+
+    def set_weight_on_bit_setpoint(self, newton: float) -> None:
+        """Set the autodriller's WOB set-point (N, compression > 0, up to the envelope's)."""
+        self._check('WOB set-point', newton, 0.0, self.envelope.weight_on_bit_max_n, 'N')
+        self._weight_on_bit_setpoint = float(newton)
+        if (drawworks := rig.drawworks_of(self.simulator)) is not None:
+            drawworks.set_weight_on_bit_setpoint(self._weight_on_bit_setpoint)
+
+    @property
+    def top_drive_mode(self) -> str:
+        """Return 'dynamic' or 'kinematic': the mean model's top drive now."""
+        return 'dynamic' if hasattr(rig.top_drive_of(self.simulator), 'loop') else 'kinematic'
+
+    @property
+    def axial_mode(self) -> str:
+        """Return the mean model's axial input now (hook_load, block_velocity, autodriller)."""
+        drawworks = rig.drawworks_of(self.simulator)
+        return 'hook_load' if drawworks is None else drawworks.mode
+
+    def _apply_torque_limit(self) -> None:
+        if self._torque_limit_nm is not None and self.top_drive_mode == 'dynamic':
+            rig.set_torque_limit(self.simulator, self._torque_limit_nm)
+
+    def _check_choice(self, what: str, value, choices) -> None:
+        self.commands_received += 1
+        if value not in choices:
+            reason = f'{what} command {value!r} is not one of {", ".join(choices)}'
+            self.rejected_commands += 1
+            self._events.append(TwinEvent('command_rejected', 'warn', self.time_s,
+                                          reason + '; the previous command stays',
+                                          {'command': what, 'value': str(value)}))
+            raise CommandRejected(reason)
 
     def _check(self, what, value, low, high, unit, physics=None):
         self.commands_received += 1
@@ -352,7 +453,9 @@ class TwinEngine:
                             ensemble_lower=lower, ensemble_upper=upper,
                             ensemble_step=ensemble_step, ensemble_time_s=ensemble_time,
                             observation=o, stick_slip_severity=ssi, mse_pa=mse,
-                            rop_m_per_h=rop, events=events, health=health)
+                            rop_m_per_h=rop, events=events, health=health,
+                            surface=surface_readings(self.simulator, o,
+                                                     self.envelope.string_weight_n))
 
     def _kpis(self) -> tuple[float | None, float | None, float | None]:
         """(stick-slip severity, MSE in Pa, ROP in m/h) over the KPI window; None where a
