@@ -1,7 +1,7 @@
 """
-``drill-twin rig``.
+``drill-twin rig``: the rig emulator (issue 15).
 
-The rig emulator (issue 15): the model as the truth, logged as a rig measures it.
+The model as the truth, logged as a rig measures it.
 
 RIG.mcap holds (model time from 0, in ns):
 

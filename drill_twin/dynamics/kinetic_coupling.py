@@ -74,9 +74,9 @@ class CouplingOperators:
 
 def _sign(system) -> float:
     """
-    +1 for the derived T_c, -1 for the sign printed in Eq.
+    Return +1 for the derived T_c, -1 for the sign printed in Eq. 8-11.
 
-    8-11 (``lateral_readings.kinetic_coupling``).
+    The sign is chosen by ``lateral_readings.kinetic_coupling``.
     """
     return -1.0 if system.model.config.lateral_readings.kinetic_coupling == 'printed' else 1.0
 
