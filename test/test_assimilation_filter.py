@@ -1,6 +1,7 @@
 """
-The ensemble Kalman analysis against the Kalman filter, where the Kalman filter is exact
-(linear measurements of a Gaussian state).
+The ensemble Kalman analysis against the Kalman filter, where the Kalman filter is exact.
+
+The Kalman filter is exact for linear measurements of a Gaussian state.
 """
 import numpy as np
 import pytest
@@ -10,7 +11,7 @@ from drill_twin.assimilation.filter import analyse, inflation_transform, kalman_
 
 
 def _problem(rng, n=4, p=2):
-    """A random Gaussian prior N(m, P), a linear operator H and noise R."""
+    """Return a random Gaussian prior N(m, P), a linear operator H and noise R."""
     m = rng.normal(size=n)
     L = rng.normal(size=(n, n))
     P = L @ L.T + 0.5 * np.eye(n)
@@ -26,6 +27,8 @@ def _sample(rng, mean, covariance, members):
 
 def test_etkf_is_the_kalman_filter_of_its_own_sample():
     """
+    For a linear operator the ETKF's analysis equals the Kalman filter's.
+
     For a linear operator the ETKF's analysis mean and covariance are exactly the
     Kalman filter's applied to the forecast ensemble's sample mean and covariance.
     """

@@ -59,9 +59,11 @@ def test_a_bit_touching_without_reload_is_one_lift_off():
 
 def _whirl_at_the_wall(friction, unbalance_kg_m=400.0, duration_s=10.0):
     """
-    The coarse string at its BHA resonance with an imbalance whose free orbit overshoots
-    the wall; returns the running dissipation of the wall, the energy it passed, the largest
-    penetration, the closed-form free orbit, the clearance and the episode tracker.
+    Run the coarse string at its BHA resonance with an imbalance that overshoots the wall.
+
+    The imbalance's free orbit overshoots the wall; returns the running dissipation of the
+    wall, the energy it passed, the largest penetration, the closed-form free orbit, the
+    clearance and the episode tracker.
     """
     spin = 4.44
     config = _config(spin, contact=True, time_step_s=0.005)
@@ -111,6 +113,8 @@ def _whirl_at_the_wall(friction, unbalance_kg_m=400.0, duration_s=10.0):
 @pytest.mark.parametrize('friction', [0.0, 0.3])
 def test_the_wall_never_does_net_positive_work(friction):
     """
+    The wall only dissipates, and holds the BHA within a small penetration.
+
     Dissipation of the wall D(t) = -(W_contact(0, t) + V(t) - V(0)) with V = k_ip p^2 / 2
     the penalty's stored energy: D >= 0 at all times (the radial force is conservative, the
     rubbing torque only dissipates). Without friction the wall loses less than 1 % of the

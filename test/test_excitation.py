@@ -1,6 +1,8 @@
 """
-The mass imbalance of the BHA (issue 12, section 2) against Lagrange's equations and the
-closed-form steady forced whirl of the linearised, prestressed string.
+The mass imbalance of the BHA (issue 12, section 2) against Lagrange and the closed form.
+
+The imbalance is checked against Lagrange's equations and the closed-form steady forced whirl
+of the linearised, prestressed string.
 
 Closed form (drill_twin/fem/harmonic.py): an imbalance m e spinning at a constant Omega loads
 its node with m e Omega^2 (cos, sin)(Omega t + phi); once the transient has died out the
@@ -31,8 +33,10 @@ POSITION_M, MASS_KG, ECCENTRICITY_M = 1500.0, 500.0, 0.01
 
 def _config(spin_rad_per_s=5.2, alpha=0.5, time_step_s=0.01, **physics):
     """
-    The paper's string on a coarse mesh, spinning freely at the bit (no bit-rock law, no
-    wall), with an imbalance in the BHA; f_se and f_ke off (the closed form is linear).
+    Return the paper's string on a coarse mesh with an imbalance in the BHA.
+
+    It spins freely at the bit (no bit-rock law, no wall); f_se and f_ke off (the closed form
+    is linear).
     """
     switches = dict(default_raw()['physics'], bit_rock=False, contact=False,
                     finite_strain=False, kinetic_coupling=False)
@@ -65,8 +69,9 @@ def _eccentric_energy(me, mee, v_rate, w_rate, angle, spin):
 
 def test_imbalance_force_follows_from_lagranges_equations():
     """
-    (F_v, F_w, T_x) = -(d/dt dT_e/dq' - dT_e/dq) for q = (v, w, theta_x) of the node,
-    derivatives taken numerically from T_e alone (complex step, central differences).
+    Return (F_v, F_w, T_x) = -(d/dt dT_e/dq' - dT_e/dq) for q = (v, w, theta_x) of the node.
+
+    The derivatives are taken numerically from T_e alone (complex step, central differences).
     """
     model, _, basis = modal_analysis(_config())
     system = build_reduced_system(model, basis)
@@ -125,6 +130,8 @@ def test_imbalance_force_follows_from_lagranges_equations():
 
 def _steady_orbit(spin_rad_per_s, duration_s, window_s=2.0):
     """
+    Run from rest and return the orbit statistics over the last ``window_s``.
+
     Run from rest (no lateral deflection) and return (mean radius, mean lag, radius
     spread, the model and the node) over the last ``window_s``. The lag is the local spin
     angle of the node minus the angle of its displacement.
@@ -148,7 +155,11 @@ def _steady_orbit(spin_rad_per_s, duration_s, window_s=2.0):
 
 @pytest.fixture(scope='module')
 def resonance_rad_per_s():
-    """The lateral mode in 3-6 rad/s that moves the imbalance's node most (modal analysis)."""
+    """
+    Return the lateral mode in 3-6 rad/s that moves the imbalance's node most.
+
+    Found by modal analysis.
+    """
     model, modes, _ = modal_analysis(_config())
     node = model.mesh.nearest_node(POSITION_M)
     lateral = np.flatnonzero((modes.kind == 'lateral') & ~modes.rigid)
@@ -163,6 +174,8 @@ def resonance_rad_per_s():
 @pytest.mark.parametrize('where', ['below', 'at', 'above'])
 def test_steady_forced_whirl_matches_the_harmonic_response(where, resonance_rad_per_s):
     """
+    The unbalanced BHA settles on the closed form's orbit across a lateral resonance.
+
     Started from rest, the unbalanced BHA settles on the closed form's orbit (radius within
     2 %, lag within 0.02 rad) below, at and above a lateral resonance, and the closed form
     peaks there (2.5 times its response 1.5 rad/s below). Damping alpha = 0.5 /s (zeta about
@@ -183,6 +196,8 @@ def test_steady_forced_whirl_matches_the_harmonic_response(where, resonance_rad_
 
 def test_the_compiled_step_applies_the_imbalance_at_the_nodes_spin_angle():
     """
+    The Newmark step's imbalance forces match Lagrange's forces written out in numpy.
+
     The Newmark step (compiled) and NonlinearForces.evaluate sum the imbalance in the same
     kernel; the step's wiring (the top-drive angle at the end of the step, the node's w''
     computed in the step) is checked against Lagrange's forces written out in numpy. A step
@@ -237,8 +252,9 @@ def test_the_compiled_step_applies_the_imbalance_at_the_nodes_spin_angle():
 
 def test_without_imbalance_its_operands_are_inert():
     """
-    Off, the kernels get an operand tuple of the same types with its switch off (no
-    force anywhere, nothing evaluated).
+    Off, the kernels get an operand tuple of the same types with its switch off.
+
+    No force anywhere, nothing evaluated.
     """
     simulator = Simulator(config_with({'physics': dict(default_raw()['physics'],
                                                        finite_strain=False,

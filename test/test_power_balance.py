@@ -17,6 +17,8 @@ from drill_twin.dynamics.simulator import Simulator
 
 def test_lateral_energy_balance_closes_with_every_term_on():
     """
+    The power balance closes with every force of the string acting.
+
     Coarse string spinning at its BHA resonance with bit-rock law, f_se, f_ke, wall
     contact with friction and an imbalance that drives it into the wall: over 5 s the
     balance closes to 1e-5 of the work exchanged; the imbalance feeds the lateral motion and

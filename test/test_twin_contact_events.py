@@ -16,6 +16,8 @@ from drill_twin.twin.engine import EnsembleSettings, TwinEngine
 
 def test_a_whirling_bha_gives_one_impact_event_per_contact_episode():
     """
+    The twin's 'impact' and 'contact_end' events are the wall's contact episodes.
+
     The coarse string at its BHA resonance with an imbalance whose free orbit overshoots
     the wall (test_contact_events): the mean model's 'impact' events are its contact
     episodes, each with the node's depth, fewer than the raw contact onsets; every

@@ -18,8 +18,9 @@ from drill_twin.modal.reduced_basis import modal_analysis
 @pytest.fixture(scope='module')
 def coarse():
     """
-    The paper's prestressed string on 8 + 4 elements, without the fluid (whose Coriolis
-    and drag terms the closed form leaves out).
+    Return the paper's prestressed string on 8 + 4 elements, without the fluid.
+
+    The closed form leaves out the fluid's Coriolis and drag terms.
     """
     sections = [dict(s, elements=n) for s, n in zip(default_raw()['sections'], (8, 4))]
     config = config_with({'sections': sections, 'reduced_basis': {'lateral_modes': 44},

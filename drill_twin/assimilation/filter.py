@@ -57,7 +57,7 @@ class Analysis:
         return int(self.innovation.size)
 
     def apply(self, members: np.ndarray) -> np.ndarray:
-        """The analysed ``members``, shape (N, ...) like the input."""
+        """Return the analysed ``members``, shape (N, ...) like the input."""
         members = np.asarray(members, dtype=float)
         flat = members.reshape(members.shape[0], -1)
         return (self.transform @ flat).reshape(members.shape)
@@ -73,7 +73,7 @@ def analyse(predicted: np.ndarray, measured: np.ndarray, noise_covariance: np.nd
             method: str = 'etkf', inflation: float = 1.0, relaxation: float = 0.0,
             rng: np.random.Generator | None = None) -> Analysis:
     """
-    The analysis transform of an ensemble (module docstring).
+    Return the analysis transform of an ensemble (module docstring).
 
     :param predicted: Y, (N, p) the measurements each member predicts.
     :param measured: y, (p,) what was measured.
@@ -141,14 +141,14 @@ def analyse(predicted: np.ndarray, measured: np.ndarray, noise_covariance: np.nd
 
 
 def _centred_right(matrix: np.ndarray) -> np.ndarray:
-    """matrix @ (I - 11^T / N) in O(N^2)."""
+    """Return matrix @ (I - 11^T / N) in O(N^2)."""
     return matrix - matrix.mean(axis=1, keepdims=True)
 
 
 def kalman_update(mean: np.ndarray, covariance: np.ndarray, operator: np.ndarray,
                   measured: np.ndarray, noise_covariance: np.ndarray):
     """
-    The Kalman filter's analysis (mean, covariance) for a linear operator H (p, n).
+    Return the Kalman filter's analysis (mean, covariance) for a linear operator H (p, n).
 
     The reference the ensemble methods converge to (Joseph form for the covariance).
     """

@@ -36,9 +36,9 @@ BOUNDS = (2.5, 97.5)
 @dataclass
 class Estimate:
     """
-    The filter's and the open loop's bit speed at the truth's times (or at the analysis
-    times without a truth), and the filter's record.
+    The filter's and the open loop's bit speed, and the filter's record.
 
+    The bit speeds are at the truth's times (or at the analysis times without a truth).
     time_s (k,); filtered and open_loop: (k, N) the members' bit speeds (rad/s), summarised
     by :meth:`bounds`; analysis_time_s (a,), nis (a,), measurements (a,) per analysis;
     germ_mean and germ_lower/upper (a, 3): G11, G12, G22 of the analysed members after each
@@ -90,7 +90,7 @@ def interval(values: np.ndarray, method: str = 'student_t') -> np.ndarray:
 
 def run_filter(config: DrillStringConfig, settings: AssimilationConfig, log: RigLog, *,
                analyse_on: bool = True, system=None, progress=None) -> Estimate:
-    """The filter over ``log`` (module docstring); ``analyse_on=False`` runs no analysis."""
+    """Return the filter over ``log`` (module docstring); ``analyse_on=False`` runs no analysis."""
     spec = settings.filter
     n = spec.members
     germs = germs_for_realizations(spec.prior_dispersion, spec.seed, range(n))
@@ -192,7 +192,7 @@ def _analyse(members: MemberState, settings: AssimilationConfig, log: RigLog, re
 def summarise(estimate: Estimate, log: RigLog, settle_s: float,
               method: str = 'student_t') -> dict:
     """
-    The scores over the log after ``settle_s`` (needs the truth).
+    Return the scores over the log after ``settle_s`` (needs the truth).
 
     The contract keys bit_speed_rms_error_rad_per_s, open_loop_bit_speed_rms_error_rad_per_s,
     bit_speed_coverage_95, and a few more.

@@ -24,8 +24,10 @@ from drill_twin.twin.stepping import GuardedSimulator
 
 def schedule_commands(simulator: Simulator, settings: AssimilationConfig, duration_s: float):
     """
-    (speed_commands, hook_commands), (c, 2) arrays of (time s, value) from the schedule,
-    starting with the simulator's initial commands at t = 0.
+    Return (speed_commands, hook_commands) from the schedule.
+
+    Each is a (c, 2) array of (time s, value), starting with the simulator's initial commands
+    at t = 0.
     """
     speed = [(0.0, simulator.top_speed_command_rad_per_s)]
     hook0 = simulator.hook_load_command_n

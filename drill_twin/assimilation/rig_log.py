@@ -62,6 +62,6 @@ class RigLog:
 
 
 def command_at(commands: np.ndarray, time_s: float) -> float:
-    """The command in force at ``time_s``: the last with a time <= time_s (+ 1 ns)."""
+    """Return the command in force at ``time_s``: the last with a time <= time_s (+ 1 ns)."""
     index = np.searchsorted(commands[:, 0], time_s + 1e-9, side='right') - 1
     return float(commands[max(index, 0), 1])

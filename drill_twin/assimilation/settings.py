@@ -55,7 +55,7 @@ class Channel:
                self.noise_relative)
 
     def std(self, value):
-        """The noise standard deviation at ``value`` (same shape)."""
+        """Return the noise standard deviation at ``value`` (same shape)."""
         import numpy as np
         return np.hypot(self.noise_std, self.noise_relative * np.abs(value))
 
@@ -234,8 +234,10 @@ def default_path() -> Path:
 def load_assimilation(path: str | Path | None = None,
                       overrides: Iterable[str] = ()) -> AssimilationConfig:
     """
-    The section from the shipped file, ``path`` merged over it and ``overrides``
-    (``assimilation.KEY=VALUE``; others are ignored: they belong to the model).
+    Return the section from the shipped file, with ``path`` and ``overrides`` merged over it.
+
+    ``overrides`` are ``assimilation.KEY=VALUE`` items; others are ignored: they belong to the
+    model.
     """
     defaults = default_path()
     raw = _section(_read_yaml(defaults), str(defaults))
@@ -257,7 +259,7 @@ def load_assimilation(path: str | Path | None = None,
 
 
 def model_overrides(overrides: Iterable[str]) -> list[str]:
-    """The ``--set`` items that are not ours (the model's)."""
+    """Return the ``--set`` items that are not ours (the model's)."""
     return [item for item in overrides if not item.startswith(SECTION + '.')]
 
 

@@ -68,7 +68,7 @@ class MemberState:
         return 2 * self.columns.size + 1 + (3 if self.parameters == 'germ' else 0)
 
     def extract(self) -> np.ndarray:
-        """The state vectors, shape (members, size)."""
+        """Return the state vectors, shape (members, size)."""
         state, m = self.simulator.state, self.members
         q, rate = state.q[:m], state.q_rate[:m]
         offset = self.simulator.hole_u()[:m] - q @ self._bit_row
@@ -79,9 +79,11 @@ class MemberState:
 
     def bit_speed_direction(self) -> np.ndarray:
         """
-        (size,) the least-norm change of a state vector that changes the bit's speed
-        (relative to the top) by 1 rad/s: along the torsional shapes at the bit, in the
-        rates. Requires the torsional block among the analysed ones.
+        Return the least-norm change of a state vector that raises the bit's speed, (size,).
+
+        The change raises the bit's speed (relative to the top) by 1 rad/s: along the
+        torsional shapes at the bit, in the rates. Requires the torsional block among the
+        analysed ones.
         """
         system = self.simulator.system
         torsion = system.blocks['torsional']
@@ -96,7 +98,7 @@ class MemberState:
         return direction
 
     def germs(self) -> np.ndarray:
-        """The analysed members' germs, (members, 2, 2)."""
+        """Return the analysed members' germs, (members, 2, 2)."""
         return self.simulator.integrator.germ[:self.members].copy()
 
     def write(self, vectors: np.ndarray) -> None:

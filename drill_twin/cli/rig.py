@@ -181,7 +181,7 @@ def write_rig_log(path, log, settings, metadata: dict[str, str]) -> None:
 
 def read_rig_log(path, settings):
     """
-    The RigLog of a log with the sensor topics of ``settings`` (no rclpy: CDR decoded here).
+    Return the RigLog of a log with the sensor topics of ``settings`` (no rclpy: CDR decoded here).
 
     Raises UsageError naming the problem (one line).
     """

@@ -519,7 +519,7 @@ class Imbalance:
 
     @property
     def unbalance_kg_m(self) -> float:
-        """m e (kg m); zero when disabled."""
+        """Return m e (kg m); zero when disabled."""
         return self.mass_kg * self.eccentricity_m if self.enabled else 0.0
 
 

@@ -37,7 +37,7 @@ LIFT_OFF_RELEASE_N = 1.0e3
 
 def radial_gap_m(system, displacement: np.ndarray) -> np.ndarray:
     """
-    r - c at every node, (m, n_nodes) (m): > 0 inside the wall (penetration).
+    Return r - c at every node, (m, n_nodes) (m): > 0 inside the wall (penetration).
 
     displacement: field-wise DOFs from the prestress, (m, n_dofs).
     """
@@ -47,7 +47,7 @@ def radial_gap_m(system, displacement: np.ndarray) -> np.ndarray:
 
 
 def node_gap_m(system, q: np.ndarray, members: np.ndarray, nodes: np.ndarray) -> np.ndarray:
-    """r - c of k (member, node) pairs from the reduced coordinates q (m, n), (k,) (m)."""
+    """Return r - c of k (member, node) pairs from the reduced coordinates q (m, n), (k,) (m)."""
     y, z = system.blocks['bending_y'], system.blocks['bending_z']
     rows = q[members]
     v = np.einsum('kj,kj->k', y.shapes[nodes], rows[:, y.columns])
@@ -193,7 +193,9 @@ class LiftOffEpisodes:
 
     def prime(self, lifted: np.ndarray) -> None:
         """
-        A bit already off the rock at the start (m,): an episode in progress, not counted.
+        Prime the tracker with the bits already off the rock at the start, (m,).
+
+        Such a bit is an episode in progress, not counted.
         """
         self.lifted = np.array(lifted, dtype=bool)
 

@@ -75,8 +75,10 @@ def accumulate_imbalance(imbalance, displacement_t, theta_x_rate_t, theta_x_acce
 @inline
 def imbalance_node_acceleration(imbalance, a, bending_z_acceleration_t):
     """
-    bending_z_acceleration_t[node] = w'' of the imbalance's node from the reduced
-    accelerations a (n, m), members last (the other rows are left as they are).
+    Set bending_z_acceleration_t[node] = w'' of the imbalance's node.
+
+    w'' is computed from the reduced accelerations a (n, m), members last (the other rows are
+    left as they are).
     """
     node, w_shape, first = imbalance[1][NODE], imbalance[4], imbalance[5]
     for i in range(a.shape[1]):
@@ -109,7 +111,7 @@ class ImbalanceForce:
 
     @classmethod
     def of(cls, system) -> 'ImbalanceForce | None':
-        """The imbalance of ``system``'s configuration, or None when it is disabled."""
+        """Return the imbalance of ``system``'s configuration, or None when it is disabled."""
         imbalance = system.model.config.excitation.imbalance
         if not imbalance.enabled or imbalance.mass_kg * imbalance.eccentricity_m == 0.0:
             return None
@@ -118,8 +120,9 @@ class ImbalanceForce:
     @staticmethod
     def arguments_of(force: 'ImbalanceForce | None', system) -> tuple:
         """
-        The kernels' operand tuple of ``force``, or an inert one (same types, flag off)
-        when there is no imbalance.
+        Return the kernels' operand tuple of ``force``, or an inert one.
+
+        The inert one (same types, flag off) is returned when there is no imbalance.
         """
         if force is not None:
             return force.arguments()
@@ -127,15 +130,16 @@ class ImbalanceForce:
 
     def arguments(self) -> tuple:
         """
+        Return what :func:`accumulate_imbalance` and :func:`imbalance_node_acceleration` take.
+
         (on, indices (node, theta_x, v, w rows) int64 (4,), (m e, m e^2) (2,), top-drive
         angle (1,) (rad, a state array), Phi_z row of the node's w (n_z,), first bending-z
-        column): what :func:`accumulate_imbalance` and
-        :func:`imbalance_node_acceleration` take.
+        column).
         """
         return self._arguments
 
     def set_top_angle(self, angle_rad: float) -> None:
-        """The top-drive angle (rad) the next evaluation adds to the node's twist."""
+        """Set the top-drive angle (rad) the next evaluation adds to the node's twist."""
         self._arguments[3][0] = angle_rad
 
     def angle_rad(self, fields) -> np.ndarray:
@@ -144,7 +148,7 @@ class ImbalanceForce:
 
     def force(self, system, fields) -> np.ndarray:
         """
-        The force on the field-wise DOFs, (m, n_dofs).
+        Return the force on the field-wise DOFs, (m, n_dofs).
 
         ``fields`` a forces.Kinematics (with bending_z_acceleration and top_angle_rad).
         """

@@ -51,8 +51,9 @@ class Kinematics:
     def of(cls, system: ReducedSystem, d, v, a, top_speed: float, top_acceleration: float,
            top_angle: float = 0.0):
         """
-        Fields of reduced coordinates d, v, a (m, n), the top-drive speed/acceleration and
-        its angle ``top_angle`` (rad).
+        Fields of reduced coordinates, the top-drive speed/acceleration and angle.
+
+        Reduced coordinates d, v, a (m, n); the top-drive angle is ``top_angle`` (rad).
 
         The arrays are transposed views of members-last arrays (the kernels' layout), so the
         forces read them without a copy.
@@ -223,15 +224,16 @@ class NonlinearForces:
         """The kernels' operands: string_forces takes them as they are."""
 
     def workspace(self, members: int) -> Workspace:
-        """The work arrays for a batch of ``members`` (made again only when m changes)."""
+        """Return the work arrays for a batch of ``members`` (made again only when m changes)."""
         if self._workspace is None or self._workspace.members != members:
             self._workspace = Workspace(self.system, members)
         return self._workspace
 
     def step_workspace(self, members: int) -> Workspace:
         """
-        Work arrays of the Newmark step for ``members`` (its own: :meth:`evaluate` may run
-        between steps).
+        Return the work arrays of the Newmark step for ``members``.
+
+        They are the step's own: :meth:`evaluate` may run between steps.
         """
         if self._step_workspace is None or self._step_workspace.members != members:
             self._step_workspace = Workspace(self.system, members)
@@ -242,10 +244,11 @@ class NonlinearForces:
                    work: Workspace, force_t, radial, in_contact,
                    bending_z_acceleration_t=None) -> int:
         """
-        force_t += f_se + f_ke + imbalance + f_ip (not the bit's) of members-last
-        kinematics (the fields of :class:`Kinematics`, transposed: (n_dofs, m), (n_nodes, m)
-        and (2 n_nodes, m)); bending_z_acceleration_t is needed only with the imbalance on
-        (whose top-drive angle must have been set).
+        Add f_se + f_ke + imbalance + f_ip (not the bit's) of members-last kinematics to force_t.
+
+        The kinematics are the fields of :class:`Kinematics`, transposed: (n_dofs, m),
+        (n_nodes, m) and (2 n_nodes, m); bending_z_acceleration_t is needed only with the
+        imbalance on (whose top-drive angle must have been set).
 
         radial, in_contact (m, n_nodes) receive the wall forces and flags (zero and False
         without contact physics), work.tangent their tangents. Returns the number of

@@ -65,7 +65,7 @@ class StepWork:
 def begin(q, q_rate, q_acceleration, hole_in, has_hole, dt, bit_axial_row, d_pred, v_pred, a,
           touch, hole, error, active, bit_ok):
     """
-    The predictor (state arrays members first (m, n), work arrays members last).
+    Compute the predictor (state arrays members first (m, n), work arrays members last).
 
     D*, v*, a = the last acceleration, the hole and ``touch``, the end-of-step ROP that puts the
     bit on the hole bottom (Newmark: d = d* + (beta/gamma) dt (v - v*); 0 on bottom).
@@ -99,9 +99,10 @@ def fields(a, d_pred, v_pred, cd, cv, top_speed, top_acceleration, shapes_axial,
            theta_x_acceleration_t, bending_y_rate_t, bending_y_acceleration_t,
            bending_z_rate_t):
     """
-    d = d* + beta dt^2 a, v = v* + gamma dt a (n, m), and the kinematics of the forces
-    (forces.Kinematics, members last). ranges (4, 4): rows and columns (start, stop, start,
-    stop) of the axial, torsional, bending-y and bending-z blocks of Phi.
+    Set d = d* + beta dt^2 a, v = v* + gamma dt a (n, m), and the kinematics of the forces.
+
+    The kinematics are forces.Kinematics, members last. ranges (4, 4): rows and columns
+    (start, stop, start, stop) of the axial, torsional, bending-y and bending-z blocks of Phi.
     """
     n, members = a.shape
     for j in range(n):
@@ -283,8 +284,10 @@ def update(iteration, force_t, radial, in_contact, tangent, touching, theta_x_ra
 @inline
 def _block_product(blocks, groups, x, out):
     """
-    out = A x for a block-diagonal A given by its diagonal blocks (4,) on the row groups
-    (4, 2) (start, stop) (an empty group is skipped).
+    Set out = A x for a block-diagonal A given by its diagonal blocks.
+
+    The diagonal blocks (4,) sit on the row groups (4, 2) (start, stop) (an empty group is
+    skipped).
     """
     for b in range(4):
         start, stop = groups[b, 0], groups[b, 1]
@@ -375,7 +378,7 @@ def _woodbury(i, in_contact, tangent, n_nodes, dt2, local_directions, local_resp
 def _solve_bit(linear0, linear1, h, start0, start1, touch, gdt, static_force, g11, g12, g22,
                random, law, fade_speed):
     """
-    x = linear + gamma dt H (F(x) - F_c) for one member (NewmarkIntegrator._solve_bit).
+    Solve x = linear + gamma dt H (F(x) - F_c) for one member (NewmarkIntegrator._solve_bit).
 
     One Newton step from the iterate's velocities kept where it stays on the law's cutting
     branch, else the bracketed solve of :mod:`bit_equation`. Returns (x0, x1, F0, F1, lifted,
@@ -429,7 +432,7 @@ def finish(d_pred, v_pred, a, cd, cv, bit_axial_row, hole, bit_force, bit_torque
            static_force, bit_rows, axial_index, torsion_index, final_full, final_modal,
            error, bit_ok, tolerance, q, q_rate, q_acceleration, hole_out, finite, converged):
     """
-    The end of a step.
+    Finish a step.
 
     The bit's exact forces into the final evaluation (final_full (n_dofs, m), final_modal (n,
     m)), the new state members first (q, q_rate, q_acceleration (m, n), hole_out (m,): the hole

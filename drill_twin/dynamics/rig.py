@@ -62,13 +62,17 @@ def attach_drives(simulator) -> None:
 
 
 def drawworks_of(simulator) -> Drawworks | None:
-    """The simulator's drawworks, or None (hook-load input)."""
+    """Return the simulator's drawworks, or None (hook-load input)."""
     train = simulator.top_drive
     return train.drawworks if isinstance(train, DriveTrain) else None
 
 
 def top_drive_of(simulator):
-    """The simulator's top drive (kinematic or dynamic), under a drawworks if there is one."""
+    """
+    Return the simulator's top drive (kinematic or dynamic).
+
+    It is found under a drawworks if there is one.
+    """
     train = simulator.top_drive
     return train.top_drive if isinstance(train, DriveTrain) else train
 
@@ -128,7 +132,7 @@ def set_top_drive_mode(simulator, mode: str, controller: str | None = None) -> N
 
 
 def set_torque_limit(simulator, newton_metre: float) -> None:
-    """The dynamic drive's motor torque limit (N m, > 0), from the next step on."""
+    """Set the dynamic drive's motor torque limit (N m, > 0), from the next step on."""
     drive = top_drive_of(simulator)
     if not hasattr(drive, 'loop'):
         raise ValueError('the torque limit applies to the dynamic top drive only')

@@ -187,18 +187,19 @@ class Simulator:
 
     # -- commands ------------------------------------------------------------------------
     def set_top_drive_speed(self, rad_per_s: float) -> None:
-        """The top-drive speed command (rad/s), followed from the next step on."""
+        """Set the top-drive speed command (rad/s), followed from the next step on."""
         self.top_speed_command_rad_per_s = float(rad_per_s)
 
     def set_hook_load(self, newton: float) -> None:
-        """The hook load command (N), applied from the next step on."""
+        """Set the hook load command (N), applied from the next step on."""
         self.hook_load_command_n = float(newton)
 
     def reset(self, q: np.ndarray | None = None, q_rate: np.ndarray | None = None) -> None:
         """
-        Restart from reduced coordinates (m, n) and rates, or from the configured initial
-        state, with the bit on the bottom of a hole that ends where the bit is; the commands,
-        the top-drive angle and the event counters are kept.
+        Restart from reduced coordinates (m, n) and rates, or from the configured initial state.
+
+        The bit is put on the bottom of a hole that ends where the bit is; the commands, the
+        top-drive angle and the event counters are kept.
         """
         speed = self.top_drive.speed_rad_per_s
         default_q, default_rate = self._initial_coordinates(speed)
@@ -357,7 +358,7 @@ class Simulator:
         return (state, evaluation), attempts
 
     def _substep_integrator(self, level: int, member: int) -> NewmarkIntegrator:
-        """The integrator of dt / 2**level for one member (built once per level)."""
+        """Return the integrator of dt / 2**level for one member (built once per level)."""
         integrator = self._substep_integrators.get(level)
         if integrator is None:
             integrator = self.integrator.with_time_step(self.dt / 2 ** level)
@@ -368,7 +369,7 @@ class Simulator:
         return integrator
 
     def hole_u(self) -> np.ndarray:
-        """The hole bottom as the bit's axial displacement, (m,) (m)."""
+        """Return the hole bottom as the bit's axial displacement, (m,) (m)."""
         if self.state.hole_u is None:
             return self._bit_u()
         return self.state.hole_u
@@ -380,7 +381,7 @@ class Simulator:
 
     def hole_rop_m_per_s(self, bit_axial_velocity_m_per_s: np.ndarray) -> np.ndarray:
         """
-        The rate the hole deepens (m/s), (m,).
+        Return the rate the hole deepens (m/s), (m,).
 
         The bit's axial velocity while it is on bottom and moving down, else 0.
         """
@@ -499,8 +500,10 @@ class Simulator:
 
     def _steady_twist(self, top_speed: float) -> np.ndarray:
         """
-        Torsional coordinates that carry the steady torque on bit and the drag of the
-        spinning string in static equilibrium (K_r q = Phi^T f on the torsional block).
+        Return the torsional coordinates that carry the steady torque on bit and the drag.
+
+        The drag is that of the spinning string; the coordinates are in static equilibrium
+        (K_r q = Phi^T f on the torsional block).
         """
         system = self.system
         torsion = system.blocks['torsional']
@@ -552,13 +555,13 @@ class _Observer:
         self.driven[:physical.shape[0]] = physical[:, system.field(1)].sum(axis=1)
 
     def rows(self, q: np.ndarray) -> np.ndarray:
-        """The observed rows of reduced vectors q (m, n): (m, k)."""
+        """Return the observed rows of reduced vectors q (m, n): (m, k)."""
         return q @ self.operator
 
 
 def _with_member(evaluation: ForceEvaluation, member: int,
                  single: ForceEvaluation) -> ForceEvaluation:
-    """``evaluation`` with row ``member`` replaced by the one-member ``single``."""
+    """Return ``evaluation`` with row ``member`` replaced by the one-member ``single``."""
     def put(array, row):
         out = array.copy()
         out[member] = row[0]

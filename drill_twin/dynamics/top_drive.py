@@ -46,7 +46,7 @@ NEWMARK_GAMMA = 0.5
 
 def characteristic_impedance(config) -> float:
     """
-    zeta = I_p sqrt(rho k_s G) of the top section (N m s/rad).
+    Return zeta = I_p sqrt(rho k_s G) of the top section (N m s/rad).
 
     The torque per unit of angular velocity a torsional wave carries in the pipe (the model's
     torsional stiffness is k_s G I_p, docs/MODEL-CHOICES.md).
@@ -59,8 +59,9 @@ def characteristic_impedance(config) -> float:
 
 class StringTorque:
     """
-    The torque the string takes at its top, measured and predicted one step ahead, for
-    member 0 of a :class:`~drill_twin.dynamics.simulator.Simulator` (module docstring).
+    The torque the string takes at its top, measured and predicted one step ahead.
+
+    For member 0 of a :class:`~drill_twin.dynamics.simulator.Simulator` (module docstring).
     """
 
     def __init__(self, simulator):
@@ -147,10 +148,11 @@ class PISpeedLoop:
     def solve(self, inertia: float, omega_n: float, setpoint: tuple[float, float], dt: float,
               string_torque_0: float, string_slope: float) -> tuple[float, float, bool]:
         """
-        (omega_{n+1}, T_m, saturated) of J (omega - omega_n)/dt = T_m - (T_0 + Z omega)
-        with the set-point omega_sp = s_0 + s_1 omega (``setpoint`` = (s_0, s_1): a
-        controller's law may depend on the coming step's torque, hence on omega); updates the
-        integral.
+        Return (omega_{n+1}, T_m, saturated) and update the integral.
+
+        Solves J (omega - omega_n)/dt = T_m - (T_0 + Z omega) with the set-point
+        omega_sp = s_0 + s_1 omega (``setpoint`` = (s_0, s_1): a controller's law may depend
+        on the coming step's torque, hence on omega).
         """
         offset, gain_sp = setpoint
         gain = self.kp + self.ki * dt
@@ -169,9 +171,10 @@ class PISpeedLoop:
 
 class DynamicTopDrive:
     """
-    Stands in for the simulator's kinematic top drive (same ``advance`` and
-    ``speed_rad_per_s``): each step solves the drive's motion coupled to the string and
-    returns the top speed the simulator imposes (module docstring).
+    Stands in for the simulator's kinematic top drive.
+
+    Same ``advance`` and ``speed_rad_per_s``: each step solves the drive's motion coupled to
+    the string and returns the top speed the simulator imposes (module docstring).
 
     ``speed_rad_per_s`` set back to the speed before the last ``advance`` (what the simulator
     does when a step fails) also puts the controller's state back.
@@ -208,7 +211,7 @@ class DynamicTopDrive:
         self._undo = None
 
     def advance(self, command_rad_per_s: float, dt: float) -> float:
-        """The top speed at the end of the coming step (rad/s) under the speed command."""
+        """Return the top speed at the end of the coming step (rad/s) under the speed command."""
         if dt != self.string.dt:
             raise ValueError(f'the dynamic top drive steps with dt = {self.string.dt} s, '
                              f'not {dt} s')
@@ -233,8 +236,9 @@ class DynamicTopDrive:
 
 def attach_top_drive(simulator) -> None:
     """
-    Replace the simulator's kinematic top drive by the dynamic one when the configuration
-    asks for it (``top_drive.mode: dynamic``); nothing otherwise.
+    Replace the simulator's kinematic top drive by the dynamic one if configured.
+
+    Done when the configuration asks for it (``top_drive.mode: dynamic``); nothing otherwise.
     """
     from drill_twin.dynamics.controllers import make_controller
     config = simulator.config.top_drive

@@ -49,7 +49,11 @@ class ForcedWhirl:
 
 def forced_whirl(model: FiniteElementModel, node: int, unbalance_kg_m: float,
                  spin_rad_per_s: float) -> ForcedWhirl:
-    """The steady whirl of ``node`` under an imbalance m e (kg m) spinning at Omega (rad/s)."""
+    """
+    Return the steady whirl of ``node`` under an imbalance.
+
+    The imbalance m e (kg m) spins at Omega (rad/s).
+    """
     omega = float(spin_rad_per_s)
     free = model.free
     dynamic = (model.total_stiffness - omega ** 2 * model.total_mass

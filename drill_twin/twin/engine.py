@@ -51,8 +51,10 @@ class CommandRejected(ValueError):
 @dataclass(frozen=True)
 class CommandLimits:
     """
-    The operator's command ranges (rad/s and N), a clamp on top of what the model can
-    represent (the hook load's range derived from the string, :mod:`.envelope`).
+    The operator's command ranges (rad/s and N).
+
+    A clamp on top of what the model can represent (the hook load's range derived from the
+    string, :mod:`.envelope`).
     """
 
     top_drive_speed_max_rad_per_s: float = 30.0
@@ -190,7 +192,7 @@ class TwinEngine:
 
     def set_hook_load(self, newton: float) -> None:
         """
-        Hook load command (N), applied from the next step; raises CommandRejected.
+        Set the hook load command (N), applied from the next step; raises CommandRejected.
 
         Accepted inside the operator's limits and the range the model can represent (the
         string's weight minus the largest WOB up to the weight plus the drag of a string
@@ -324,14 +326,15 @@ class TwinEngine:
 
     @kpi_window_s.setter
     def kpi_window_s(self, seconds: float) -> None:
-        """The KPI window (s); the ring buffer holds one sample per model step."""
+        """Set the KPI window (s); the ring buffer holds one sample per model step."""
         self._kpi_window_s = float(seconds)
         self._window.resize(int(math.ceil(self._kpi_window_s / self.dt)) + 1)
 
     def advance(self, steps: int) -> TwinSnapshot:
         """
-        Step the mean model ``steps`` times (the ensemble likewise, one tick behind) and
-        return the snapshot of the last step.
+        Step the mean model ``steps`` times and return the snapshot of the last step.
+
+        The ensemble is stepped likewise, one tick behind.
         """
         start = time.perf_counter()
         self._exchange_with_ensemble(steps)
@@ -356,8 +359,9 @@ class TwinEngine:
 
     def _exchange_with_ensemble(self, steps: int) -> None:
         """
-        Collect the ensemble's previous tick and hand it this one, under the commands
-        in force for the mean model's coming steps.
+        Collect the ensemble's previous tick and hand it this one.
+
+        This tick runs under the commands in force for the mean model's coming steps.
         """
         if self.ensemble_runner is None:
             return
@@ -423,7 +427,7 @@ class TwinEngine:
     # -- results -------------------------------------------------------------------------
     def kpi_window_samples(self) -> np.ndarray:
         """
-        The mean model's samples inside the KPI window, one per step.
+        Return the mean model's samples inside the KPI window, one per step.
 
         Columns time (s), bit speed (rad/s), ROP (m/s), WOB (N), TOB (N m); shape (n, 5).
         """
