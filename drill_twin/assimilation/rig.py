@@ -47,7 +47,8 @@ def run_rig(config: DrillStringConfig, settings: AssimilationConfig, duration_s:
     """
     Run the truth for ``duration_s`` and return its log.
 
-    :param config: the truth's model. settings: sensors, channels, schedule, noise seed.
+    :param config: the truth's model.
+    :param settings: sensors, channels, schedule, noise seed.
     :param germ: (2, 2) the truth's bit-rock germ, or None (its mean law).
     :param system: a prebuilt reduced system of ``config``.
     :param progress: called with the fraction done, or None.

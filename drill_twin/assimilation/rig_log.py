@@ -16,7 +16,7 @@ class SensorSamples:
     """
     One sensor's samples.
 
-    Stamp_s (k,) when sampled, arrival_s (k,) when received, values {channel: (k,)} in SI.
+    stamp_s (k,) when sampled, arrival_s (k,) when received, values {channel: (k,)} in SI.
     """
 
     stamp_s: np.ndarray
@@ -46,11 +46,11 @@ class Truth:
 @dataclass(frozen=True)
 class RigLog:
     """
-    duration_s.
+    A rig log: its length, sensor samples, commands, truth and metadata.
 
-    The log's length (s); sensors: {name: SensorSamples}; speed_commands and hook_commands: (c,
-    2) rows (time s, value: rad/s or N), in time order, the first at 0; truth: or None;
-    metadata: strings about the run (the truth's configuration...).
+    duration_s: the log's length (s); sensors: {name: SensorSamples}; speed_commands and
+    hook_commands: (c, 2) rows (time s, value: rad/s or N), in time order, the first at 0;
+    truth: or None; metadata: strings about the run (the truth's configuration...).
     """
 
     duration_s: float

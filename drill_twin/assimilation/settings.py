@@ -97,10 +97,10 @@ class Sensor:
 @dataclass(frozen=True, slots=True, kw_only=True)
 class Sensors:
     """
-    top_drive.
+    The rig's sensors: top drive, hook and downhole.
 
-    Surface speed and torque (sensor_msgs/JointState 'top_drive'); hook: hook load and block
-    position (JointState 'hook', effort and position); downhole: bit speed, TOB and WOB
+    top_drive: surface speed and torque (sensor_msgs/JointState 'top_drive'); hook: hook load
+    and block position (JointState 'hook', effort and position); downhole: bit speed, TOB and WOB
     (JointState 'bit_rotation' velocity/effort, 'bit_axial' effort).
     """
 

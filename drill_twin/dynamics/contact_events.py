@@ -124,7 +124,7 @@ class ContactEpisodes:
         """
         Feed one step from what the contact force saw.
 
-        In_contact and the radial force F = k_ip (r - c), (m, n_nodes); ``gap_of(members,
+        in_contact and the radial force F = k_ip (r - c), (m, n_nodes); ``gap_of(members,
         nodes)`` gives r - c of the pairs (k,) (m) whose episode is open and which no longer
         touch (called only for those).
         """

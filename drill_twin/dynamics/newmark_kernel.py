@@ -67,7 +67,7 @@ def begin(q, q_rate, q_acceleration, hole_in, has_hole, dt, bit_axial_row, d_pre
     """
     Compute the predictor (state arrays members first (m, n), work arrays members last).
 
-    D*, v*, a = the last acceleration, the hole and ``touch``, the end-of-step ROP that puts the
+    d*, v*, a = the last acceleration, the hole and ``touch``, the end-of-step ROP that puts the
     bit on the hole bottom (Newmark: d = d* + (beta/gamma) dt (v - v*); 0 on bottom).
     """
     members, n = q.shape

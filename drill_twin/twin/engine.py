@@ -496,7 +496,7 @@ def _quantiles(values: np.ndarray, *probabilities):
     """
     Quantiles along axis 0 by linear interpolation (numpy's default method), computed directly.
 
-    Np.quantile's overhead dominates for a handful of members.
+    np.quantile's overhead dominates for a handful of members.
     """
     ordered = np.sort(values, axis=0)
     last = ordered.shape[0] - 1
