@@ -126,7 +126,7 @@ def test_inflation_keeps_the_mean_and_scales_the_spread(members, inflation, seed
 
 def test_nis_is_chi_square_in_expectation_when_the_statistics_are_right():
     """
-    Innovations of a consistent filter.
+    The innovations of a consistent filter have E[NIS] = p.
 
     E[NIS] = p (here p = 3, mean over 400 draws within 4 standard errors, sd of chi2_3 =
     sqrt(6)).
@@ -158,9 +158,9 @@ def test_bad_input_is_refused():
 def test_relaxation_keeps_the_analysis_mean_and_blends_the_anomalies(
         members, relaxation, inflation, seed):
     """
-    RTPP.
+    RTPP keeps the analysis mean and blends the anomalies.
 
-    The mean is the plain analysis's; the anomalies are (1 - r) A_a + r A_f with A_f the
+    RTPP: the mean is the plain analysis's; the anomalies are (1 - r) A_a + r A_f with A_f the
     (inflated) forecast anomalies.
     """
     rng = np.random.default_rng(seed)
