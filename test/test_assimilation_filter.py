@@ -1,5 +1,8 @@
-"""The ensemble Kalman analysis against the Kalman filter, where the Kalman filter is exact
-(linear measurements of a Gaussian state)."""
+"""
+The ensemble Kalman analysis against the Kalman filter, where the Kalman filter is exact.
+
+The Kalman filter is exact for linear measurements of a Gaussian state.
+"""
 import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
@@ -8,7 +11,7 @@ from drill_twin.assimilation.filter import analyse, inflation_transform, kalman_
 
 
 def _problem(rng, n=4, p=2):
-    """A random Gaussian prior N(m, P), a linear operator H and noise R."""
+    """Return a random Gaussian prior N(m, P), a linear operator H and noise R."""
     m = rng.normal(size=n)
     L = rng.normal(size=(n, n))
     P = L @ L.T + 0.5 * np.eye(n)
@@ -23,8 +26,12 @@ def _sample(rng, mean, covariance, members):
 
 
 def test_etkf_is_the_kalman_filter_of_its_own_sample():
-    """For a linear operator the ETKF's analysis mean and covariance are exactly the
-    Kalman filter's applied to the forecast ensemble's sample mean and covariance."""
+    """
+    For a linear operator the ETKF's analysis equals the Kalman filter's.
+
+    For a linear operator the ETKF's analysis mean and covariance are exactly the
+    Kalman filter's applied to the forecast ensemble's sample mean and covariance.
+    """
     rng = np.random.default_rng(1)
     m, P, H, R, y = _problem(rng)
     X = _sample(rng, m, P, 12)
@@ -47,13 +54,17 @@ def test_enkf_mean_is_the_kalman_mean_of_its_own_sample():
 
 @pytest.mark.parametrize('method', ['etkf', 'enkf'])
 def test_converges_to_the_kalman_filter_as_members_grow(method):
-    """A 20-step linear Gaussian filter (a damped rotation, position measured): the ensemble
-    mean and covariance approach the Kalman filter's at the Monte Carlo rate N^-1/2.
+    """
+    A 20-step linear Gaussian filter (a damped rotation, position measured).
+
+    The ensemble mean and covariance approach the Kalman filter's at the Monte Carlo rate
+    N^-1/2.
 
     The error at N = 400 members is within 6 sqrt(trace P / N) of the exact Kalman mean
     (a sampling error bound) and shrinks by at least a factor 2 from N = 25 (the rate
     predicts 4; averages over 5 seeds); the covariance's relative error at N = 400 is within
-    6 sqrt(2 / N), the sampling error of a covariance estimate."""
+    6 sqrt(2 / N), the sampling error of a covariance estimate.
+    """
     theta = 0.3
     F = 0.98 * np.array([[np.cos(theta), -np.sin(theta)], [np.sin(theta), np.cos(theta)]])
     Q = np.diag([0.01, 0.02])
@@ -90,8 +101,11 @@ def test_converges_to_the_kalman_filter_as_members_grow(method):
 @settings(max_examples=30, deadline=None)
 @given(members=st.integers(2, 20), inflation=st.floats(1.0, 2.0), seed=st.integers(0, 2**32 - 1))
 def test_the_transform_keeps_a_constant_quantity_and_is_affine(members, inflation, seed):
-    """Each analysed member is an affine combination of the forecast
-    (rows of T sum to 1): a quantity equal in every member is left unchanged."""
+    """
+    Each analysed member is an affine combination of the forecast (rows of T sum to 1).
+
+    A quantity equal in every member is left unchanged.
+    """
     rng = np.random.default_rng(seed)
     Y = rng.normal(size=(members, 3))
     analysis = analyse(Y, rng.normal(size=3), np.ones(3), inflation=inflation)
@@ -111,8 +125,12 @@ def test_inflation_keeps_the_mean_and_scales_the_spread(members, inflation, seed
 
 
 def test_nis_is_chi_square_in_expectation_when_the_statistics_are_right():
-    """Innovations of a consistent filter: E[NIS] = p (here p = 3, mean over 400 draws
-    within 4 standard errors, sd of chi2_3 = sqrt(6))."""
+    """
+    The innovations of a consistent filter have E[NIS] = p.
+
+    E[NIS] = p (here p = 3, mean over 400 draws within 4 standard errors, sd of chi2_3 =
+    sqrt(6)).
+    """
     rng = np.random.default_rng(5)
     values = []
     for _ in range(400):
@@ -139,8 +157,12 @@ def test_bad_input_is_refused():
        inflation=st.floats(1.0, 1.5), seed=st.integers(0, 2**32 - 1))
 def test_relaxation_keeps_the_analysis_mean_and_blends_the_anomalies(
         members, relaxation, inflation, seed):
-    """RTPP: the mean is the plain analysis's; the anomalies are (1 - r) A_a + r A_f with
-    A_f the (inflated) forecast anomalies."""
+    """
+    RTPP keeps the analysis mean and blends the anomalies.
+
+    RTPP: the mean is the plain analysis's; the anomalies are (1 - r) A_a + r A_f with A_f the
+    (inflated) forecast anomalies.
+    """
     rng = np.random.default_rng(seed)
     X = rng.normal(size=(members, 4))
     H = rng.normal(size=(2, 4))
@@ -154,9 +176,13 @@ def test_relaxation_keeps_the_analysis_mean_and_blends_the_anomalies(
 
 
 def test_the_student_t_bounds_cover_a_new_draw_95_percent_of_the_time():
-    """8 Gaussian members and a truth drawn alike: the Student-t prediction interval holds
-    the truth 95 % of the time (4000 trials, within 4 standard errors); the members' own
-    2.5-97.5 % percentiles hold it less than (N - 1)/(N + 1) = 78 % of the time."""
+    """
+    8 Gaussian members and a truth drawn alike.
+
+    The Student-t prediction interval holds the truth 95 % of the time (4000 trials, within 4
+    standard errors); the members' own 2.5-97.5 % percentiles hold it less than (N - 1)/(N + 1)
+    = 78 % of the time.
+    """
     from drill_twin.assimilation.offline import interval
 
     rng = np.random.default_rng(11)

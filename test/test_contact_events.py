@@ -1,6 +1,10 @@
-"""Wall contact under sustained whirl (issue 12, section 3): the contact force never does net
-positive work, the wall holds the string within a bounded penetration, and events are one
-per contact episode (hysteresis), with node depth and peak force."""
+"""
+Wall contact under sustained whirl (issue 12, section 3).
+
+The contact force never does net positive work, the wall holds the string within a bounded
+penetration, and events are one per contact episode (hysteresis), with node depth and peak
+force.
+"""
 from __future__ import annotations
 
 from dataclasses import replace
@@ -54,9 +58,13 @@ def test_a_bit_touching_without_reload_is_one_lift_off():
 
 
 def _whirl_at_the_wall(friction, unbalance_kg_m=400.0, duration_s=10.0):
-    """The coarse string at its BHA resonance with an imbalance whose free orbit overshoots
-    the wall; returns the running dissipation of the wall, the energy it passed, the largest
-    penetration, the closed-form free orbit, the clearance and the episode tracker."""
+    """
+    Run the coarse string at its BHA resonance with an imbalance that overshoots the wall.
+
+    The imbalance's free orbit overshoots the wall; returns the running dissipation of the
+    wall, the energy it passed, the largest penetration, the closed-form free orbit, the
+    clearance and the episode tracker.
+    """
     spin = 4.44
     config = _config(spin, contact=True, time_step_s=0.005)
     imbalance = replace(config.excitation.imbalance, mass_kg=unbalance_kg_m / 0.1,
@@ -104,12 +112,16 @@ def _whirl_at_the_wall(friction, unbalance_kg_m=400.0, duration_s=10.0):
 
 @pytest.mark.parametrize('friction', [0.0, 0.3])
 def test_the_wall_never_does_net_positive_work(friction):
-    """Dissipation of the wall D(t) = -(W_contact(0, t) + V(t) - V(0)) with V = k_ip p^2 / 2
+    """
+    The wall only dissipates, and holds the BHA within a small penetration.
+
+    Dissipation of the wall D(t) = -(W_contact(0, t) + V(t) - V(0)) with V = k_ip p^2 / 2
     the penalty's stored energy: D >= 0 at all times (the radial force is conservative, the
     rubbing torque only dissipates). Without friction the wall loses less than 1 % of the
     energy it exchanges (the trapezoidal rule's error at the kinks); with mu = 0.3 it
     dissipates. The wall holds a BHA whose free orbit overshoots it by centimetres within a
-    penetration below 2 mm, and the episodes are fewer than the raw contact onsets."""
+    penetration below 2 mm, and the episodes are fewer than the raw contact onsets.
+    """
     dissipation, passed, deepest, free, clearance, episodes, simulator = _whirl_at_the_wall(
         friction)
     onsets = int(simulator.contact_onset_count[0])
@@ -133,9 +145,12 @@ def test_the_wall_never_does_net_positive_work(friction):
 
 
 def test_the_simulator_counts_a_bit_lift_off_once_and_the_summary_gives_rates():
-    """Pulled up by a hook load far above the string's weight, the bit leaves the rock: the
-    Simulator's lift-off tracker (hysteresis: test above) counts one episode, in progress;
-    the summary turns the running counts into counts and rates in its window."""
+    """
+    Pulled up by a hook load far above the string's weight, the bit leaves the rock.
+
+    The Simulator's lift-off tracker (hysteresis: test above) counts one episode, in progress;
+    the summary turns the running counts into counts and rates in its window.
+    """
     config = _config(2.0, bit_rock=True)
     simulator = Simulator(config)
     assert simulator.lift_off_count.tolist() == [0]

@@ -1,5 +1,8 @@
-"""The mass imbalance of the BHA (issue 12, section 2) against Lagrange's equations and the
-closed-form steady forced whirl of the linearised, prestressed string.
+"""
+The mass imbalance of the BHA (issue 12, section 2) against Lagrange and the closed form.
+
+The imbalance is checked against Lagrange's equations and the closed-form steady forced whirl
+of the linearised, prestressed string.
 
 Closed form (drill_twin/fem/harmonic.py): an imbalance m e spinning at a constant Omega loads
 its node with m e Omega^2 (cos, sin)(Omega t + phi); once the transient has died out the
@@ -29,8 +32,12 @@ POSITION_M, MASS_KG, ECCENTRICITY_M = 1500.0, 500.0, 0.01
 
 
 def _config(spin_rad_per_s=5.2, alpha=0.5, time_step_s=0.01, **physics):
-    """The paper's string on a coarse mesh, spinning freely at the bit (no bit-rock law, no
-    wall), with an imbalance in the BHA; f_se and f_ke off (the closed form is linear)."""
+    """
+    Return the paper's string on a coarse mesh with an imbalance in the BHA.
+
+    It spins freely at the bit (no bit-rock law, no wall); f_se and f_ke off (the closed form
+    is linear).
+    """
     switches = dict(default_raw()['physics'], bit_rock=False, contact=False,
                     finite_strain=False, kinetic_coupling=False)
     switches.update(physics)
@@ -61,8 +68,11 @@ def _eccentric_energy(me, mee, v_rate, w_rate, angle, spin):
 
 
 def test_imbalance_force_follows_from_lagranges_equations():
-    """(F_v, F_w, T_x) = -(d/dt dT_e/dq' - dT_e/dq) for q = (v, w, theta_x) of the node,
-    derivatives taken numerically from T_e alone (complex step, central differences)."""
+    """
+    Return (F_v, F_w, T_x) = -(d/dt dT_e/dq' - dT_e/dq) for q = (v, w, theta_x) of the node.
+
+    The derivatives are taken numerically from T_e alone (complex step, central differences).
+    """
     model, _, basis = modal_analysis(_config())
     system = build_reduced_system(model, basis)
     force = ImbalanceForce.of(system)
@@ -119,9 +129,13 @@ def test_imbalance_force_follows_from_lagranges_equations():
 
 
 def _steady_orbit(spin_rad_per_s, duration_s, window_s=2.0):
-    """Run from rest (no lateral deflection) and return (mean radius, mean lag, radius
+    """
+    Run from rest and return the orbit statistics over the last ``window_s``.
+
+    Run from rest (no lateral deflection) and return (mean radius, mean lag, radius
     spread, the model and the node) over the last ``window_s``. The lag is the local spin
-    angle of the node minus the angle of its displacement."""
+    angle of the node minus the angle of its displacement.
+    """
     simulator = Simulator(_config(spin_rad_per_s))
     system, force = simulator.system, simulator.forces.imbalance
     steps = int(round(duration_s / simulator.dt))
@@ -141,7 +155,11 @@ def _steady_orbit(spin_rad_per_s, duration_s, window_s=2.0):
 
 @pytest.fixture(scope='module')
 def resonance_rad_per_s():
-    """The lateral mode in 3-6 rad/s that moves the imbalance's node most (modal analysis)."""
+    """
+    Return the lateral mode in 3-6 rad/s that moves the imbalance's node most.
+
+    Found by modal analysis.
+    """
     model, modes, _ = modal_analysis(_config())
     node = model.mesh.nearest_node(POSITION_M)
     lateral = np.flatnonzero((modes.kind == 'lateral') & ~modes.rigid)
@@ -155,10 +173,14 @@ def resonance_rad_per_s():
 
 @pytest.mark.parametrize('where', ['below', 'at', 'above'])
 def test_steady_forced_whirl_matches_the_harmonic_response(where, resonance_rad_per_s):
-    """Started from rest, the unbalanced BHA settles on the closed form's orbit (radius within
+    """
+    The unbalanced BHA settles on the closed form's orbit across a lateral resonance.
+
+    Started from rest, the unbalanced BHA settles on the closed form's orbit (radius within
     2 %, lag within 0.02 rad) below, at and above a lateral resonance, and the closed form
     peaks there (2.5 times its response 1.5 rad/s below). Damping alpha = 0.5 /s (zeta about
-    0.06 at the resonance) lets the transient die out (e^-6) in 26 s."""
+    0.06 at the resonance) lets the transient die out (e^-6) in 26 s.
+    """
     spin = {'below': resonance_rad_per_s - 1.5, 'at': resonance_rad_per_s,
             'above': resonance_rad_per_s + 1.5}[where]
     radius, lag, spread, model, force = _steady_orbit(spin, 26.0)
@@ -173,14 +195,18 @@ def test_steady_forced_whirl_matches_the_harmonic_response(where, resonance_rad_
 
 
 def test_the_compiled_step_applies_the_imbalance_at_the_nodes_spin_angle():
-    """The Newmark step (compiled) and NonlinearForces.evaluate sum the imbalance in the same
+    """
+    The Newmark step's imbalance forces match Lagrange's forces written out in numpy.
+
+    The Newmark step (compiled) and NonlinearForces.evaluate sum the imbalance in the same
     kernel; the step's wiring (the top-drive angle at the end of the step, the node's w''
     computed in the step) is checked against Lagrange's forces written out in numpy. A step
     limited to one iteration returns the forces of its first iterate, whose kinematics are
     known: d = q + dt q' + dt^2 a / 2, v = q' + dt a, a the last accelerations, with the new
     top speed, acceleration and angle. Only the imbalance acts on the string (f_se, f_ke,
     wall, bit off), so that f_NL is the imbalance's. A stale top angle (it advances by
-    0.05 rad per step) or a missing w'' (the reaction torque) fails."""
+    0.05 rad per step) or a missing w'' (the reaction torque) fails.
+    """
     simulator = Simulator(_config(5.2))
     system, force = simulator.system, simulator.forces.imbalance
     me, mee = force.unbalance_kg_m, force.inertia_kg_m2
@@ -225,8 +251,11 @@ def test_the_compiled_step_applies_the_imbalance_at_the_nodes_spin_angle():
 
 
 def test_without_imbalance_its_operands_are_inert():
-    """Off, the kernels get an operand tuple of the same types with its switch off (no
-    force anywhere, nothing evaluated)."""
+    """
+    Off, the kernels get an operand tuple of the same types with its switch off.
+
+    No force anywhere, nothing evaluated.
+    """
     simulator = Simulator(config_with({'physics': dict(default_raw()['physics'],
                                                        finite_strain=False,
                                                        kinetic_coupling=False)}))

@@ -1,6 +1,10 @@
-"""The lateral energy balance closes: E(t) - E(0) equals the work of damping, f_se, f_ke, the
-wall and the imbalance on the lateral DOFs (the identity of the trapezoidal rule), so the
-per-term work it reports is where the lateral energy comes from."""
+"""
+The lateral energy balance closes.
+
+E(t) - E(0) equals the work of damping, f_se, f_ke, the wall and the imbalance on the lateral
+DOFs (the identity of the trapezoidal rule), so the per-term work it reports is where the
+lateral energy comes from.
+"""
 from __future__ import annotations
 
 from dataclasses import replace
@@ -12,10 +16,14 @@ from drill_twin.dynamics.simulator import Simulator
 
 
 def test_lateral_energy_balance_closes_with_every_term_on():
-    """Coarse string spinning at its BHA resonance with bit-rock law, f_se, f_ke, wall
+    """
+    The power balance closes with every force of the string acting.
+
+    Coarse string spinning at its BHA resonance with bit-rock law, f_se, f_ke, wall
     contact with friction and an imbalance that drives it into the wall: over 5 s the
     balance closes to 1e-5 of the work exchanged; the imbalance feeds the lateral motion and
-    the damping takes energy out."""
+    the damping takes energy out.
+    """
     config = _config(4.44, contact=True, finite_strain=True, kinetic_coupling=True,
                      bit_rock=True, time_step_s=0.005)
     imbalance = replace(config.excitation.imbalance, mass_kg=4000.0, eccentricity_m=0.1)

@@ -1,6 +1,9 @@
-"""The twin's wall-contact events (issue 12, section 3): one impact per contact episode of a
-node, with its depth, and the episode's peak force when it ends, not one per step a node
-chattering on the wall starts touching."""
+"""
+The twin's wall-contact events (issue 12, section 3).
+
+One impact per contact episode of a node, with its depth, and the episode's peak force when it
+ends, not one per step a node chattering on the wall starts touching.
+"""
 from __future__ import annotations
 
 from dataclasses import replace
@@ -12,11 +15,15 @@ from drill_twin.twin.engine import EnsembleSettings, TwinEngine
 
 
 def test_a_whirling_bha_gives_one_impact_event_per_contact_episode():
-    """The coarse string at its BHA resonance with an imbalance whose free orbit overshoots
+    """
+    The twin's 'impact' and 'contact_end' events are the wall's contact episodes.
+
+    The coarse string at its BHA resonance with an imbalance whose free orbit overshoots
     the wall (test_contact_events): the mean model's 'impact' events are its contact
     episodes, each with the node's depth, fewer than the raw contact onsets; every
     'contact_end' carries the episode's peak force (k_ip times its peak penetration) and its
-    duration."""
+    duration.
+    """
     config = _config(4.44, contact=True, time_step_s=0.005)
     imbalance = replace(config.excitation.imbalance, mass_kg=4000.0, eccentricity_m=0.1)
     config = replace(config, excitation=replace(config.excitation, imbalance=imbalance))

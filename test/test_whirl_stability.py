@@ -1,7 +1,10 @@
-"""Rayleigh's beta damping read as internal (rotating) damping: the growth rates of the full
-finite-element model against the first-order closed form of every mode pair (Jeffcott):
-sigma = -alpha/2 - beta omega_k^2/2 +/- beta Omega omega_k/2 (forward +, backward -), and
-all negative for the paper's fixed-frame damping."""
+"""
+Rayleigh's beta damping read as internal (rotating) damping.
+
+The growth rates of the full finite-element model against the first-order closed form of every
+mode pair (Jeffcott): sigma = -alpha/2 - beta omega_k^2/2 +/- beta Omega omega_k/2 (forward +,
+backward -), and all negative for the paper's fixed-frame damping.
+"""
 from __future__ import annotations
 
 import numpy as np
@@ -14,8 +17,11 @@ from drill_twin.modal.reduced_basis import modal_analysis
 
 @pytest.fixture(scope='module')
 def coarse():
-    """The paper's prestressed string on 8 + 4 elements, without the fluid (whose Coriolis
-    and drag terms the closed form leaves out)."""
+    """
+    Return the paper's prestressed string on 8 + 4 elements, without the fluid.
+
+    The closed form leaves out the fluid's Coriolis and drag terms.
+    """
     sections = [dict(s, elements=n) for s, n in zip(default_raw()['sections'], (8, 4))]
     config = config_with({'sections': sections, 'reduced_basis': {'lateral_modes': 44},
                           'physics': dict(default_raw()['physics'], fluid=False)})

@@ -1,4 +1,5 @@
-"""Ensemble data assimilation: the twin follows the rig (issue 15).
+"""
+Ensemble data assimilation: the twin follows the rig (issue 15).
 
 A pure numerical core (never imports rclpy): the ensemble Kalman analysis
 (:mod:`.filter`), its settings (:mod:`.settings`), what a rig measures and how

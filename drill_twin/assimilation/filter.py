@@ -1,4 +1,5 @@
-"""The ensemble Kalman analysis as a transform of the members (ETKF or stochastic EnKF).
+"""
+The ensemble Kalman analysis as a transform of the members (ETKF or stochastic EnKF).
 
 Layout: an ensemble is a matrix X of shape (N, n), members in rows. The analysis of either
 method is linear in the members: X_a = T X with an (N, N) matrix T built from the predicted
@@ -37,7 +38,8 @@ METHODS = ('etkf', 'enkf')
 
 @dataclass(frozen=True)
 class Analysis:
-    """The result of one analysis.
+    """
+    The result of one analysis.
 
     transform: (N, N), X_a = transform @ X for any quantity X (N, ...) carried by the members.
     innovation: y - mean(Y), (p,). innovation_covariance: P_yy + R, (p, p) (after inflation).
@@ -55,7 +57,7 @@ class Analysis:
         return int(self.innovation.size)
 
     def apply(self, members: np.ndarray) -> np.ndarray:
-        """The analysed ``members``, shape (N, ...) like the input."""
+        """Return the analysed ``members``, shape (N, ...) like the input."""
         members = np.asarray(members, dtype=float)
         flat = members.reshape(members.shape[0], -1)
         return (self.transform @ flat).reshape(members.shape)
@@ -70,19 +72,18 @@ def inflation_transform(members: int, inflation: float) -> np.ndarray:
 def analyse(predicted: np.ndarray, measured: np.ndarray, noise_covariance: np.ndarray, *,
             method: str = 'etkf', inflation: float = 1.0, relaxation: float = 0.0,
             rng: np.random.Generator | None = None) -> Analysis:
-    """The analysis transform of an ensemble (module docstring).
+    """
+    Return the analysis transform of an ensemble (module docstring).
 
-    Args:
-        predicted: Y, (N, p) the measurements each member predicts.
-        measured: y, (p,) what was measured.
-        noise_covariance: R, (p, p) symmetric positive-definite, or (p,) its diagonal.
-        method: 'etkf' or 'enkf'.
-        inflation: multiplicative inflation of the anomalies (>= 1; 1 = none).
-        relaxation: RTPP weight of the forecast anomalies in the analysed ones, in [0, 1).
-        rng: the Generator of the observation perturbations (required for 'enkf').
+    :param predicted: Y, (N, p) the measurements each member predicts.
+    :param measured: y, (p,) what was measured.
+    :param noise_covariance: R, (p, p) symmetric positive-definite, or (p,) its diagonal.
+    :param method: 'etkf' or 'enkf'.
+    :param inflation: multiplicative inflation of the anomalies (>= 1; 1 = none).
+    :param relaxation: RTPP weight of the forecast anomalies in the analysed ones, in [0, 1).
+    :param rng: the Generator of the observation perturbations (required for 'enkf').
 
-    Returns:
-        :class:`Analysis`; its transform maps the forecast members (not inflated) to the
+    :return: :class:`Analysis`; its transform maps the forecast members (not inflated) to the
         analysed ones.
     """
     Y = np.asarray(predicted, dtype=float)
@@ -140,14 +141,17 @@ def analyse(predicted: np.ndarray, measured: np.ndarray, noise_covariance: np.nd
 
 
 def _centred_right(matrix: np.ndarray) -> np.ndarray:
-    """matrix @ (I - 11^T / N) in O(N^2)."""
+    """Return matrix @ (I - 11^T / N) in O(N^2)."""
     return matrix - matrix.mean(axis=1, keepdims=True)
 
 
 def kalman_update(mean: np.ndarray, covariance: np.ndarray, operator: np.ndarray,
                   measured: np.ndarray, noise_covariance: np.ndarray):
-    """The Kalman filter's analysis (mean, covariance) for a linear operator H (p, n): the
-    reference the ensemble methods converge to (Joseph form for the covariance)."""
+    """
+    Return the Kalman filter's analysis (mean, covariance) for a linear operator H (p, n).
+
+    The reference the ensemble methods converge to (Joseph form for the covariance).
+    """
     H = np.asarray(operator, dtype=float)
     R = np.asarray(noise_covariance, dtype=float)
     R = np.diag(R) if R.ndim == 1 else R

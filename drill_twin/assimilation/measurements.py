@@ -1,4 +1,5 @@
-"""What a rig measures, read off the model's :class:`Observation`, and how a sensor samples it.
+"""
+What a rig measures, read off the model's :class:`Observation`, and how a sensor samples it.
 
 Channels (SI, the sign a driller reads):
 
@@ -33,9 +34,11 @@ with the top drive and hook of the model: the same for all members)."""
 
 
 def channel_values(observation: Observation, channel: str, members: int) -> np.ndarray:
-    """The channel's true value for the first ``members`` members, shape (members,).
+    """
+    Return the channel's true value for the first ``members`` members, shape (members,).
 
-    The observation must have the top quantities (``detailed``) for those members."""
+    The observation must have the top quantities (``detailed``) for those members.
+    """
     o = observation
     if channel == 'top_speed':
         return np.full(members, float(o.top_speed_rad_per_s))
@@ -56,7 +59,11 @@ def sample_times(rate_hz: float, duration_s: float) -> np.ndarray:
 
 
 def read(settings: AssimilationConfig, channel: str, value, rng: np.random.Generator):
-    """A noisy, biased reading of ``value`` (any shape) as ``settings`` describe the channel."""
+    """
+    Return a noisy, biased reading of ``value`` (any shape).
+
+    The noise and bias are as ``settings`` describe the channel.
+    """
     spec = settings.channel(channel)
     value = np.asarray(value, dtype=float)
     return value + spec.bias + spec.std(value) * rng.standard_normal(value.shape)

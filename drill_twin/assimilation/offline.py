@@ -1,4 +1,5 @@
-"""The ensemble filter run over a recorded rig log, beside the same ensemble in open loop.
+"""
+The ensemble filter run over a recorded rig log, beside the same ensemble in open loop.
 
 One Simulator holds 2N members: members 0..N-1 are analysed, members N..2N-1 are the same
 initial ensemble (the same germs) left in open loop, so that both see the same commands and
@@ -34,9 +35,10 @@ BOUNDS = (2.5, 97.5)
 
 @dataclass
 class Estimate:
-    """The filter's and the open loop's bit speed at the truth's times (or at the analysis
-    times without a truth), and the filter's record.
+    """
+    The filter's and the open loop's bit speed, and the filter's record.
 
+    The bit speeds are at the truth's times (or at the analysis times without a truth).
     time_s (k,); filtered and open_loop: (k, N) the members' bit speeds (rad/s), summarised
     by :meth:`bounds`; analysis_time_s (a,), nis (a,), measurements (a,) per analysis;
     germ_mean and germ_lower/upper (a, 3): G11, G12, G22 of the analysed members after each
@@ -66,7 +68,8 @@ class Estimate:
 
 
 def interval(values: np.ndarray, method: str = 'student_t') -> np.ndarray:
-    """(mean, lower, upper) 95 % bounds from an ensemble's values (N,).
+    """
+    (mean, lower, upper) 95 % bounds from an ensemble's values (N,).
 
     student_t: the 95 % prediction interval of a new draw from the Gaussian the N members
     are drawn from, mean -+ t_{0.975, N-1} s sqrt(1 + 1/N) (s the sample standard
@@ -87,7 +90,7 @@ def interval(values: np.ndarray, method: str = 'student_t') -> np.ndarray:
 
 def run_filter(config: DrillStringConfig, settings: AssimilationConfig, log: RigLog, *,
                analyse_on: bool = True, system=None, progress=None) -> Estimate:
-    """The filter over ``log`` (module docstring); ``analyse_on=False`` runs no analysis."""
+    """Return the filter over ``log`` (module docstring); ``analyse_on=False`` runs no analysis."""
     spec = settings.filter
     n = spec.members
     germs = germs_for_realizations(spec.prior_dispersion, spec.seed, range(n))
@@ -149,8 +152,11 @@ def run_filter(config: DrillStringConfig, settings: AssimilationConfig, log: Rig
 
 def _analyse(members: MemberState, settings: AssimilationConfig, log: RigLog, ready,
              predicted, rng, estimate: Estimate, time: float) -> None:
-    """One analysis with the ``ready`` samples; updates the members and the stored
-    predictions of the samples still to come."""
+    """
+    One analysis with the ``ready`` samples.
+
+    Updates the members and the stored predictions of the samples still to come.
+    """
     Y, y, variance = [], [], []
     for _, sensor, index, channels in ready:
         prediction = predicted.pop((sensor, index))
@@ -185,9 +191,12 @@ def _analyse(members: MemberState, settings: AssimilationConfig, log: RigLog, re
 
 def summarise(estimate: Estimate, log: RigLog, settle_s: float,
               method: str = 'student_t') -> dict:
-    """The scores over the log after ``settle_s`` (needs the truth): the contract keys
-    bit_speed_rms_error_rad_per_s, open_loop_bit_speed_rms_error_rad_per_s,
-    bit_speed_coverage_95, and a few more."""
+    """
+    Return the scores over the log after ``settle_s`` (needs the truth).
+
+    The contract keys bit_speed_rms_error_rad_per_s, open_loop_bit_speed_rms_error_rad_per_s,
+    bit_speed_coverage_95, and a few more.
+    """
     if log.truth is None:
         raise ValueError('the log holds no truth to score against')
     a = estimate.arrays()

@@ -1,4 +1,5 @@
-"""The rig emulator: the model run as the truth, read as a rig's sensors read it.
+"""
+The rig emulator: the model run as the truth, read as a rig's sensors read it.
 
 One member (the mean model, or a germ given) under the schedule of set-points of the
 settings: the top-drive speed and hook load commands change at their times (the initial ones
@@ -22,8 +23,12 @@ from drill_twin.twin.stepping import GuardedSimulator
 
 
 def schedule_commands(simulator: Simulator, settings: AssimilationConfig, duration_s: float):
-    """(speed_commands, hook_commands), (c, 2) arrays of (time s, value) from the schedule,
-    starting with the simulator's initial commands at t = 0."""
+    """
+    Return (speed_commands, hook_commands) from the schedule.
+
+    Each is a (c, 2) array of (time s, value), starting with the simulator's initial commands
+    at t = 0.
+    """
     speed = [(0.0, simulator.top_speed_command_rad_per_s)]
     hook0 = simulator.hook_load_command_n
     hook = [(0.0, hook0)]
@@ -39,13 +44,14 @@ def schedule_commands(simulator: Simulator, settings: AssimilationConfig, durati
 
 def run_rig(config: DrillStringConfig, settings: AssimilationConfig, duration_s: float,
             germ: np.ndarray | None = None, system=None, progress=None) -> RigLog:
-    """Run the truth for ``duration_s`` and return its log.
+    """
+    Run the truth for ``duration_s`` and return its log.
 
-    Args:
-        config: the truth's model. settings: sensors, channels, schedule, noise seed.
-        germ: (2, 2) the truth's bit-rock germ, or None (its mean law).
-        system: a prebuilt reduced system of ``config``.
-        progress: called with the fraction done, or None.
+    :param config: the truth's model.
+    :param settings: sensors, channels, schedule, noise seed.
+    :param germ: (2, 2) the truth's bit-rock germ, or None (its mean law).
+    :param system: a prebuilt reduced system of ``config``.
+    :param progress: called with the fraction done, or None.
     """
     sim = Simulator(config, 1, germs=None if germ is None else germ[None], system=system)
     guarded = GuardedSimulator(sim, first_member=0, name='the rig')

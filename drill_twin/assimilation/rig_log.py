@@ -1,4 +1,5 @@
-"""A rig's log as arrays: sensor samples, commands, and (from the emulator) the truth.
+"""
+A rig's log as arrays: sensor samples, commands, and (from the emulator) the truth.
 
 The rig emulator produces it, the MCAP layer writes and reads it, the offline filter
 consumes it. Times in seconds of model time from the start of the log.
@@ -12,8 +13,11 @@ import numpy as np
 
 @dataclass(frozen=True)
 class SensorSamples:
-    """One sensor's samples: stamp_s (k,) when sampled, arrival_s (k,) when received,
-    values {channel: (k,)} in SI."""
+    """
+    One sensor's samples.
+
+    stamp_s (k,) when sampled, arrival_s (k,) when received, values {channel: (k,)} in SI.
+    """
 
     stamp_s: np.ndarray
     arrival_s: np.ndarray
@@ -22,8 +26,12 @@ class SensorSamples:
 
 @dataclass(frozen=True)
 class Truth:
-    """The true downhole state at time_s (k,): bit speed (rad/s), bit angle (rad), ROP
-    (m/s), TOB and WOB (N m, N; > 0 cutting / compressed), bit and hole depth (m)."""
+    """
+    The true downhole state at time_s (k,).
+
+    Bit speed (rad/s), bit angle (rad), ROP (m/s), TOB and WOB (N m, N; > 0 cutting /
+    compressed), bit and hole depth (m).
+    """
 
     time_s: np.ndarray
     bit_speed_rad_per_s: np.ndarray
@@ -37,9 +45,13 @@ class Truth:
 
 @dataclass(frozen=True)
 class RigLog:
-    """duration_s: the log's length (s); sensors: {name: SensorSamples}; speed_commands and
+    """
+    A rig log: its length, sensor samples, commands, truth and metadata.
+
+    duration_s: the log's length (s); sensors: {name: SensorSamples}; speed_commands and
     hook_commands: (c, 2) rows (time s, value: rad/s or N), in time order, the first at 0;
-    truth: or None; metadata: strings about the run (the truth's configuration...)."""
+    truth: or None; metadata: strings about the run (the truth's configuration...).
+    """
 
     duration_s: float
     sensors: dict[str, SensorSamples]
@@ -50,6 +62,6 @@ class RigLog:
 
 
 def command_at(commands: np.ndarray, time_s: float) -> float:
-    """The command in force at ``time_s``: the last with a time <= time_s (+ 1 ns)."""
+    """Return the command in force at ``time_s``: the last with a time <= time_s (+ 1 ns)."""
     index = np.searchsorted(commands[:, 0], time_s + 1e-9, side='right') - 1
     return float(commands[max(index, 0), 1])

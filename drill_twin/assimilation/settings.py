@@ -1,4 +1,5 @@
-"""The ``assimilation:`` settings (config/assimilation.yaml) as validated frozen dataclasses.
+"""
+The ``assimilation:`` settings (config/assimilation.yaml) as validated frozen dataclasses.
 
 The rig emulator and the filter read the same section: the rig takes the sensors' rates,
 delays, noise and bias as the truth's; the filter takes them as what it assumes of the
@@ -37,8 +38,12 @@ def _check(condition: bool, key: str, message: str, value) -> None:
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class Channel:
-    """One measured quantity: noise standard deviation noise_std + noise_relative |value|
-    (combined in quadrature; SI units of the quantity) and a constant bias (SI)."""
+    """
+    One measured quantity.
+
+    Noise standard deviation noise_std + noise_relative |value| (combined in quadrature; SI
+    units of the quantity) and a constant bias (SI).
+    """
 
     noise_std: float
     noise_relative: float = 0.0
@@ -50,7 +55,7 @@ class Channel:
                self.noise_relative)
 
     def std(self, value):
-        """The noise standard deviation at ``value`` (same shape)."""
+        """Return the noise standard deviation at ``value`` (same shape)."""
         import numpy as np
         return np.hypot(self.noise_std, self.noise_relative * np.abs(value))
 
@@ -70,8 +75,12 @@ class Channels:
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class Sensor:
-    """A sensor's messages: on ``topic`` at ``rate_hz``, each arriving ``delay_s`` after the
-    instant it samples (its header stamp): 0 at the surface, seconds for mud-pulse data."""
+    """
+    A sensor's messages.
+
+    On ``topic`` at ``rate_hz``, each arriving ``delay_s`` after the instant it samples (its
+    header stamp): 0 at the surface, seconds for mud-pulse data.
+    """
 
     topic: str
     rate_hz: float
@@ -87,9 +96,13 @@ class Sensor:
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class Sensors:
-    """top_drive: surface speed and torque (sensor_msgs/JointState 'top_drive'); hook: hook
-    load and block position (JointState 'hook', effort and position); downhole: bit speed,
-    TOB and WOB (JointState 'bit_rotation' velocity/effort, 'bit_axial' effort)."""
+    """
+    The rig's sensors: top drive, hook and downhole.
+
+    top_drive: surface speed and torque (sensor_msgs/JointState 'top_drive'); hook: hook load
+    and block position (JointState 'hook', effort and position); downhole: bit speed, TOB and WOB
+    (JointState 'bit_rotation' velocity/effort, 'bit_axial' effort).
+    """
 
     top_drive: Sensor
     hook: Sensor
@@ -104,7 +117,8 @@ SENSOR_OF = {'top_speed': 'top_drive', 'top_torque': 'top_drive', 'hook_load': '
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class Filter:
-    """The ensemble filter.
+    """
+    The ensemble filter.
 
     method: etkf or enkf; members: N (>= 2); inflation: multiplicative, of the anomalies at
     every analysis (>= 1); relaxation: RTPP weight of the forecast anomalies in the analysed
@@ -158,8 +172,12 @@ class Filter:
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class SetPoint:
-    """A change of the commands at ``time_s`` (s): the top-drive speed (Hz) and/or the hook
-    load, as a change from the initial one (N, > 0 lifts: less weight on bit)."""
+    """
+    A change of the commands at ``time_s`` (s).
+
+    The top-drive speed (Hz) and/or the hook load, as a change from the initial one (N, > 0
+    lifts: less weight on bit).
+    """
 
     time_s: float
     top_drive_speed_hz: float | None = None
@@ -174,8 +192,12 @@ class SetPoint:
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class Rig:
-    """The rig emulator: its schedule of set-points, the rate of the true downhole state it
-    records for scoring (Hz) and the seed of its sensor noise."""
+    """
+    The rig emulator.
+
+    Its schedule of set-points, the rate of the true downhole state it records for scoring (Hz)
+    and the seed of its sensor noise.
+    """
 
     schedule: tuple[SetPoint, ...] = ()
     truth_rate_hz: float = 20.0
@@ -211,8 +233,12 @@ def default_path() -> Path:
 
 def load_assimilation(path: str | Path | None = None,
                       overrides: Iterable[str] = ()) -> AssimilationConfig:
-    """The section from the shipped file, ``path`` merged over it and ``overrides``
-    (``assimilation.KEY=VALUE``; others are ignored: they belong to the model)."""
+    """
+    Return the section from the shipped file, with ``path`` and ``overrides`` merged over it.
+
+    ``overrides`` are ``assimilation.KEY=VALUE`` items; others are ignored: they belong to the
+    model.
+    """
     defaults = default_path()
     raw = _section(_read_yaml(defaults), str(defaults))
     source = str(defaults)
@@ -233,7 +259,7 @@ def load_assimilation(path: str | Path | None = None,
 
 
 def model_overrides(overrides: Iterable[str]) -> list[str]:
-    """The ``--set`` items that are not ours (the model's)."""
+    """Return the ``--set`` items that are not ours (the model's)."""
     return [item for item in overrides if not item.startswith(SECTION + '.')]
 
 

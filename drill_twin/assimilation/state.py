@@ -1,4 +1,5 @@
-"""The analysed state of a batch of members, read from and written back into a Simulator.
+"""
+The analysed state of a batch of members, read from and written back into a Simulator.
 
 Per member the state vector is, in order: the reduced coordinates q of the analysed blocks,
 their rates, the hole's offset below the bit (m, >= 0: 0 on bottom) and, with parameters
@@ -39,13 +40,13 @@ def coordinates_to_germ(coordinates: np.ndarray) -> np.ndarray:
 
 
 class MemberState:
-    """The analysed state of members 0..members-1 of ``simulator`` (the rest untouched).
+    """
+    The analysed state of members 0..members-1 of ``simulator`` (the rest untouched).
 
-    Args:
-        simulator: the batch (its integrator must carry germs when parameters='germ').
-        members: how many of its first members are analysed.
-        blocks: names of the reduced-coordinate blocks analysed ('axial', 'torsional', ...).
-        parameters: 'germ' or 'none'.
+    :param simulator: the batch (its integrator must carry germs when parameters='germ').
+    :param members: how many of its first members are analysed.
+    :param blocks: names of the reduced-coordinate blocks analysed ('axial', 'torsional', ...).
+    :param parameters: 'germ' or 'none'.
     """
 
     def __init__(self, simulator: Simulator, members: int, blocks, parameters: str = 'germ'):
@@ -67,7 +68,7 @@ class MemberState:
         return 2 * self.columns.size + 1 + (3 if self.parameters == 'germ' else 0)
 
     def extract(self) -> np.ndarray:
-        """The state vectors, shape (members, size)."""
+        """Return the state vectors, shape (members, size)."""
         state, m = self.simulator.state, self.members
         q, rate = state.q[:m], state.q_rate[:m]
         offset = self.simulator.hole_u()[:m] - q @ self._bit_row
@@ -77,9 +78,13 @@ class MemberState:
         return np.concatenate(parts, axis=1)
 
     def bit_speed_direction(self) -> np.ndarray:
-        """(size,) the least-norm change of a state vector that changes the bit's speed
-        (relative to the top) by 1 rad/s: along the torsional shapes at the bit, in the
-        rates. Requires the torsional block among the analysed ones."""
+        """
+        Return the least-norm change of a state vector that raises the bit's speed, (size,).
+
+        The change raises the bit's speed (relative to the top) by 1 rad/s: along the
+        torsional shapes at the bit, in the rates. Requires the torsional block among the
+        analysed ones.
+        """
         system = self.simulator.system
         torsion = system.blocks['torsional']
         row = np.zeros(system.size)
@@ -93,12 +98,15 @@ class MemberState:
         return direction
 
     def germs(self) -> np.ndarray:
-        """The analysed members' germs, (members, 2, 2)."""
+        """Return the analysed members' germs, (members, 2, 2)."""
         return self.simulator.integrator.germ[:self.members].copy()
 
     def write(self, vectors: np.ndarray) -> None:
-        """Put state vectors (members, size) back: a member on bottom before stays on bottom
-        (offset 0); an offset is never negative."""
+        """
+        Put state vectors (members, size) back.
+
+        A member on bottom before stays on bottom (offset 0); an offset is never negative.
+        """
         sim, m, k = self.simulator, self.members, self.columns.size
         vectors = np.asarray(vectors, dtype=float)
         if vectors.shape != (m, self.size):

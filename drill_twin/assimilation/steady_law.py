@@ -1,4 +1,5 @@
-"""The steady drilling point of a bit-rock law with a germ: ROP and TOB at a bit speed and WOB.
+"""
+The steady drilling point of a bit-rock law with a germ: ROP and TOB at a bit speed and WOB.
 
 Used to compare an estimated law (the configuration's with the analysed germ) with the
 truth's (another configuration, another germ) where it matters: at the operating point.
@@ -18,8 +19,11 @@ ROP_BRACKET_M_PER_S = (1e-9, 0.1)
 
 def steady_point(law: BitRockLaw, omega_rad_per_s: float, weight_on_bit_n: float,
                  germ: np.ndarray | None = None) -> tuple[float, float]:
-    """(ROP m/s, TOB N m > 0) of steady drilling at omega (rad/s) under WOB (N, > 0); NaNs if
-    the law cannot drill there (no root in the bracket)."""
+    """
+    (ROP m/s, TOB N m > 0) of steady drilling at omega (rad/s) under WOB (N, > 0).
+
+    NaNs if the law cannot drill there (no root in the bracket).
+    """
     germs = None if germ is None else np.asarray(germ, dtype=float).reshape(1, 2, 2)
 
     def axial(rop):

@@ -1,4 +1,5 @@
-"""``drill-twin assimilate``: the ensemble Kalman filter over a recorded rig log (issue 15).
+"""
+``drill-twin assimilate``: the ensemble Kalman filter over a recorded rig log (issue 15).
 
 EST.mcap holds, at the truth's instants (or at the analysis instants without a truth), in
 model time from 0 (ns):

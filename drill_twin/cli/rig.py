@@ -1,5 +1,7 @@
-"""``drill-twin rig``: the rig emulator (issue 15): the model as the truth, logged as a rig
-measures it.
+"""
+``drill-twin rig``: the rig emulator (issue 15).
+
+The model as the truth, logged as a rig measures it.
 
 RIG.mcap holds (model time from 0, in ns):
 
@@ -178,8 +180,11 @@ def write_rig_log(path, log, settings, metadata: dict[str, str]) -> None:
 
 
 def read_rig_log(path, settings):
-    """The RigLog of a log with the sensor topics of ``settings`` (no rclpy: CDR decoded
-    here). Raises UsageError naming the problem (one line)."""
+    """
+    Return the RigLog of a log with the sensor topics of ``settings`` (no rclpy: CDR decoded here).
+
+    Raises UsageError naming the problem (one line).
+    """
     from drill_twin import interface as itf
     from drill_twin.assimilation.rig_log import RigLog, SensorSamples, Truth
     from drill_twin.recording import cdr

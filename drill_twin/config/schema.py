@@ -494,7 +494,8 @@ ECCENTRICITY_REASON = 'a mass centre half a metre off the axis is outside any bo
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class Imbalance:
-    """A mass imbalance or bent-collar eccentricity at one node of the string.
+    """
+    A mass imbalance or bent-collar eccentricity at one node of the string.
 
     The mass ``mass_kg`` (already part of the string's mass) has its centre at
     ``eccentricity_m`` from the section's axis, in the direction fixed to the section that is
@@ -518,7 +519,7 @@ class Imbalance:
 
     @property
     def unbalance_kg_m(self) -> float:
-        """m e (kg m); zero when disabled."""
+        """Return m e (kg m); zero when disabled."""
         return self.mass_kg * self.eccentricity_m if self.enabled else 0.0
 
 
@@ -534,8 +535,10 @@ KineticCouplingSign = Literal['derived', 'printed']
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class LateralReadings:
-    """Readings of the paper tested for its lateral response (issue 12, section 1); the
-    defaults are the project's readings (docs/MODEL-CHOICES.md, docs/LATERAL.md).
+    """
+    Readings of the paper tested for its lateral response (issue 12, section 1).
+
+    The defaults are the project's readings (docs/MODEL-CHOICES.md, docs/LATERAL.md).
 
     kinetic_coupling: 'derived' (T_c = -rho I_p theta_x' theta_y theta_z', the sign that
     follows from the rotation sequence) or 'printed' (Eq. 8-11 as printed: the opposite).

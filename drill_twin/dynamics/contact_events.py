@@ -1,5 +1,8 @@
-"""Contact events that mean something: one impact per contact episode, one lift-off per
-separation of the bit from the rock (issue 12, section 3).
+"""
+Contact events that mean something.
+
+One impact per contact episode, one lift-off per separation of the bit from the rock (issue 12,
+section 3).
 
 A node whirling along the wall, or grazing it, crosses r = c (c the clearance) back and forth
 at every step; counting every onset (``Simulator.contact_onset_count``) counts that
@@ -33,7 +36,8 @@ LIFT_OFF_RELEASE_N = 1.0e3
 
 
 def radial_gap_m(system, displacement: np.ndarray) -> np.ndarray:
-    """r - c at every node, (m, n_nodes) (m): > 0 inside the wall (penetration).
+    """
+    Return r - c at every node, (m, n_nodes) (m): > 0 inside the wall (penetration).
 
     displacement: field-wise DOFs from the prestress, (m, n_dofs).
     """
@@ -43,7 +47,7 @@ def radial_gap_m(system, displacement: np.ndarray) -> np.ndarray:
 
 
 def node_gap_m(system, q: np.ndarray, members: np.ndarray, nodes: np.ndarray) -> np.ndarray:
-    """r - c of k (member, node) pairs from the reduced coordinates q (m, n), (k,) (m)."""
+    """Return r - c of k (member, node) pairs from the reduced coordinates q (m, n), (k,) (m)."""
     y, z = system.blocks['bending_y'], system.blocks['bending_z']
     rows = q[members]
     v = np.einsum('kj,kj->k', y.shapes[nodes], rows[:, y.columns])
@@ -53,7 +57,8 @@ def node_gap_m(system, q: np.ndarray, members: np.ndarray, nodes: np.ndarray) ->
 
 @dataclass
 class ImpactEvent:
-    """One contact episode of one node with the wall.
+    """
+    One contact episode of one node with the wall.
 
     member, node: which; depth_m: x of the node (m, down from the top); start_s, end_s: when it
     opened and closed (end_s None while open); peak_force_n: largest radial force (N);
@@ -71,7 +76,8 @@ class ImpactEvent:
 
 @dataclass
 class ContactEpisodes:
-    """Wall-contact episodes of m members over n nodes (see the module docstring).
+    """
+    Wall-contact episodes of m members over n nodes (see the module docstring).
 
     node_depth_m: (n_nodes,); release_m: the gap hysteresis (m, >= 0). ``opened`` and
     ``closed`` hold the events of the last update; ``history`` every closed event (unless
@@ -115,9 +121,13 @@ class ContactEpisodes:
     def update_from_contact(self, time_s: float, in_contact: np.ndarray,
                             radial_force_n: np.ndarray, stiffness_n_per_m: float,
                             gap_of) -> None:
-        """Feed one step from what the contact force saw: in_contact and the radial force
-        F = k_ip (r - c), (m, n_nodes); ``gap_of(members, nodes)`` gives r - c of the pairs
-        (k,) (m) whose episode is open and which no longer touch (called only for those)."""
+        """
+        Feed one step from what the contact force saw.
+
+        in_contact and the radial force F = k_ip (r - c), (m, n_nodes); ``gap_of(members,
+        nodes)`` gives r - c of the pairs (k,) (m) whose episode is open and which no longer
+        touch (called only for those).
+        """
         touching = np.asarray(in_contact, dtype=bool)
         if not self._open and not touching.any():         # nothing touches, nothing open
             self.opened, self.closed = [], []
@@ -127,8 +137,11 @@ class ContactEpisodes:
         self._advance(time_s, touching, force, penetration, gap_of)
 
     def _advance(self, time_s, touching, force, penetration, gap_of) -> None:
-        """Open or extend the episodes of the touching pairs; close the open ones that have
-        come away from the wall by more than release_m."""
+        """
+        Open or extend the episodes of the touching pairs.
+
+        Close the open ones that have come away from the wall by more than release_m.
+        """
         self.opened, self.closed = [], []
         for member, node in zip(*np.nonzero(touching)):
             key = (int(member), int(node))
@@ -157,7 +170,8 @@ class ContactEpisodes:
 
 @dataclass
 class LiftOffEpisodes:
-    """Lift-off episodes of the bit of m members (see the module docstring).
+    """
+    Lift-off episodes of the bit of m members (see the module docstring).
 
     release_n: the compressive bit force (N, >= 0) that ends an episode. ``count`` (m,):
     episodes opened since the start; ``lifted`` (m,): an episode is in progress; ``opened``
@@ -178,8 +192,11 @@ class LiftOffEpisodes:
         self.opened = np.zeros(self.members, dtype=bool)
 
     def prime(self, lifted: np.ndarray) -> None:
-        """A bit already off the rock at the start (m,): an episode in progress, not
-        counted."""
+        """
+        Prime the tracker with the bits already off the rock at the start, (m,).
+
+        Such a bit is an episode in progress, not counted.
+        """
         self.lifted = np.array(lifted, dtype=bool)
 
     def update(self, lifted: np.ndarray, weight_on_bit_n: np.ndarray) -> None:

@@ -1,4 +1,5 @@
-"""Lateral excitation that real drill strings have and the paper leaves out (issue 12, Sect. 2).
+"""
+Lateral excitation that real drill strings have and the paper leaves out (issue 12, Sect. 2).
 
 Mass imbalance / bent-collar eccentricity. A mass m (already counted in the string's mass)
 has its centre at e from the axis of the node it sits on, in a direction fixed to the
@@ -45,7 +46,8 @@ NODE, THETA_X_ROW, V_ROW, W_ROW = range(4)
 @kernel
 def accumulate_imbalance(imbalance, displacement_t, theta_x_rate_t, theta_x_acceleration_t,
                          bending_y_acceleration_t, bending_z_acceleration_t, force_t):
-    """force_t += the imbalance's (F_v, F_w, T_x) at its node, members last.
+    """
+    force_t += the imbalance's (F_v, F_w, T_x) at its node, members last.
 
     imbalance: :meth:`ImbalanceForce.arguments`; displacement_t, force_t: field-wise DOFs
     (n_dofs, m) (displacement without the driven angle); theta_x rates and accelerations
@@ -72,8 +74,12 @@ def accumulate_imbalance(imbalance, displacement_t, theta_x_rate_t, theta_x_acce
 
 @inline
 def imbalance_node_acceleration(imbalance, a, bending_z_acceleration_t):
-    """bending_z_acceleration_t[node] = w'' of the imbalance's node from the reduced
-    accelerations a (n, m), members last (the other rows are left as they are)."""
+    """
+    Set bending_z_acceleration_t[node] = w'' of the imbalance's node.
+
+    w'' is computed from the reduced accelerations a (n, m), members last (the other rows are
+    left as they are).
+    """
     node, w_shape, first = imbalance[1][NODE], imbalance[4], imbalance[5]
     for i in range(a.shape[1]):
         total = 0.0
@@ -83,7 +89,8 @@ def imbalance_node_acceleration(imbalance, a, bending_z_acceleration_t):
 
 
 class ImbalanceForce:
-    """The generalised force of one eccentric mass, on the field-wise DOFs of a system.
+    """
+    The generalised force of one eccentric mass, on the field-wise DOFs of a system.
 
     Attributes: node (index), depth_m (x of that node, m), unbalance_kg_m (m e),
     inertia_kg_m2 (m e^2), and the field-wise rows of theta_x, v and w at the node.
@@ -104,7 +111,7 @@ class ImbalanceForce:
 
     @classmethod
     def of(cls, system) -> 'ImbalanceForce | None':
-        """The imbalance of ``system``'s configuration, or None when it is disabled."""
+        """Return the imbalance of ``system``'s configuration, or None when it is disabled."""
         imbalance = system.model.config.excitation.imbalance
         if not imbalance.enabled or imbalance.mass_kg * imbalance.eccentricity_m == 0.0:
             return None
@@ -112,21 +119,27 @@ class ImbalanceForce:
 
     @staticmethod
     def arguments_of(force: 'ImbalanceForce | None', system) -> tuple:
-        """The kernels' operand tuple of ``force``, or an inert one (same types, flag off)
-        when there is no imbalance."""
+        """
+        Return the kernels' operand tuple of ``force``, or an inert one.
+
+        The inert one (same types, flag off) is returned when there is no imbalance.
+        """
         if force is not None:
             return force.arguments()
         return _arguments(False, system, 0, (0, 0, 0), (0.0, 0.0))
 
     def arguments(self) -> tuple:
-        """(on, indices (node, theta_x, v, w rows) int64 (4,), (m e, m e^2) (2,), top-drive
+        """
+        Return what :func:`accumulate_imbalance` and :func:`imbalance_node_acceleration` take.
+
+        (on, indices (node, theta_x, v, w rows) int64 (4,), (m e, m e^2) (2,), top-drive
         angle (1,) (rad, a state array), Phi_z row of the node's w (n_z,), first bending-z
-        column): what :func:`accumulate_imbalance` and
-        :func:`imbalance_node_acceleration` take."""
+        column).
+        """
         return self._arguments
 
     def set_top_angle(self, angle_rad: float) -> None:
-        """The top-drive angle (rad) the next evaluation adds to the node's twist."""
+        """Set the top-drive angle (rad) the next evaluation adds to the node's twist."""
         self._arguments[3][0] = angle_rad
 
     def angle_rad(self, fields) -> np.ndarray:
@@ -134,8 +147,11 @@ class ImbalanceForce:
         return fields.top_angle_rad + fields.displacement[:, self.theta_x_row]
 
     def force(self, system, fields) -> np.ndarray:
-        """The force on the field-wise DOFs, (m, n_dofs); ``fields`` a forces.Kinematics
-        (with bending_z_acceleration and top_angle_rad)."""
+        """
+        Return the force on the field-wise DOFs, (m, n_dofs).
+
+        ``fields`` a forces.Kinematics (with bending_z_acceleration and top_angle_rad).
+        """
         if fields.bending_z_acceleration is None:
             raise ValueError('the imbalance needs the kinematics\' bending_z_acceleration')
         self.set_top_angle(fields.top_angle_rad)

@@ -1,4 +1,5 @@
-"""The non-linear force vector f_NL of Eq. 31, evaluated for a batch of members.
+"""
+The non-linear force vector f_NL of Eq. 31, evaluated for a batch of members.
 
 The finite-strain, kinetic-coupling and contact forces are accumulated by compiled kernels
 (``finite_strain``, ``kinetic_coupling``, ``contact``) into one force array laid out members
@@ -24,7 +25,8 @@ from drill_twin.fem import strain_energy as se
 
 @dataclass(frozen=True)
 class Kinematics:
-    """What the forces need of a batch of m members (field-wise DOFs, SI units).
+    """
+    What the forces need of a batch of m members (field-wise DOFs, SI units).
 
     displacement: u from the prestress, (m, n_dofs) (without the driven angle, on which no
     force depends). Rates and accelerations include the driven rotation:
@@ -48,8 +50,10 @@ class Kinematics:
     @classmethod
     def of(cls, system: ReducedSystem, d, v, a, top_speed: float, top_acceleration: float,
            top_angle: float = 0.0):
-        """Fields of reduced coordinates d, v, a (m, n), the top-drive speed/acceleration and
-        its angle ``top_angle`` (rad).
+        """
+        Fields of reduced coordinates, the top-drive speed/acceleration and angle.
+
+        Reduced coordinates d, v, a (m, n); the top-drive angle is ``top_angle`` (rad).
 
         The arrays are transposed views of members-last arrays (the kernels' layout), so the
         forces read them without a copy.
@@ -77,8 +81,11 @@ class Kinematics:
 
 
 def members_last(array: np.ndarray, buffer: np.ndarray) -> np.ndarray:
-    """``array`` (m, k) as a C-contiguous (k, m) array: its transpose when that is one (no
-    copy), else a copy into ``buffer``."""
+    """
+    ``array`` (m, k) as a C-contiguous (k, m) array.
+
+    Its transpose when that is one (no copy), else a copy into ``buffer``.
+    """
     transposed = array.T
     if transposed.flags.c_contiguous and transposed.dtype == np.float64:
         return transposed
@@ -88,7 +95,8 @@ def members_last(array: np.ndarray, buffer: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class ForceEvaluation:
-    """f_NL and what the bit and the wall see.
+    """
+    f_NL and what the bit and the wall see.
 
     full: f_NL on the field-wise DOFs, (m, n_dofs) (N, N m); modal: Phi^T f_NL, (m, n).
     weight_on_bit_n, torque_on_bit_nm: the bit-rock forces f_bit, t_bit (total, not minus the
@@ -111,7 +119,8 @@ class ForceEvaluation:
 
 
 class Workspace:
-    """Work arrays of the force kernels for a batch of m members (allocated once).
+    """
+    Work arrays of the force kernels for a batch of m members (allocated once).
 
     displacement_t: (n_dofs, m); theta_x_rate_t, theta_x_acceleration_t: (n_nodes, m);
     bending_y_rate_t, bending_y_acceleration_t, bending_z_rate_t, bending_z_acceleration_t:
@@ -151,14 +160,16 @@ def string_forces(switches, strain_arguments, coupling_arguments, contact_argume
                   bending_y_rate_t, bending_y_acceleration_t, bending_z_rate_t,
                   bending_z_acceleration_t, strain, linear, stress, coupling, force_t, radial,
                   in_contact, tangent):
-    """force_t += f_se + f_ke + the imbalance + f_ip (not the bit's), members last: the one
-    place the forces of the string are summed (:meth:`NonlinearForces.accumulate` and the
-    Newmark step kernel call it). switches: (finite strain, kinetic coupling, contact); the
-    arguments of each kernel are those of NonlinearForces; imbalance_arguments: the
-    excitation's (:meth:`ImbalanceForce.arguments`, its first element says whether it is on;
-    only then is bending_z_acceleration_t read, at the imbalance's node). Returns the number
-    of (member, node) pairs touching the wall (radial, in_contact are zero and False without
-    contact)."""
+    """
+    force_t += f_se + f_ke + the imbalance + f_ip (not the bit's), members last.
+
+    The one place the forces of the string are summed (:meth:`NonlinearForces.accumulate` and
+    the Newmark step kernel call it). switches: (finite strain, kinetic coupling, contact); the
+    arguments of each kernel are those of NonlinearForces; imbalance_arguments: the excitation's
+    (:meth:`ImbalanceForce.arguments`, its first element says whether it is on; only then is
+    bending_z_acceleration_t read, at the imbalance's node). Returns the number of (member,
+    node) pairs touching the wall (radial, in_contact are zero and False without contact).
+    """
     if switches[0]:
         accumulate_finite_strain(displacement_t, *strain_arguments, strain, linear, stress,
                                  force_t)
@@ -213,14 +224,17 @@ class NonlinearForces:
         """The kernels' operands: string_forces takes them as they are."""
 
     def workspace(self, members: int) -> Workspace:
-        """The work arrays for a batch of ``members`` (made again only when m changes)."""
+        """Return the work arrays for a batch of ``members`` (made again only when m changes)."""
         if self._workspace is None or self._workspace.members != members:
             self._workspace = Workspace(self.system, members)
         return self._workspace
 
     def step_workspace(self, members: int) -> Workspace:
-        """Work arrays of the Newmark step for ``members`` (its own: :meth:`evaluate` may run
-        between steps)."""
+        """
+        Return the work arrays of the Newmark step for ``members``.
+
+        They are the step's own: :meth:`evaluate` may run between steps.
+        """
         if self._step_workspace is None or self._step_workspace.members != members:
             self._step_workspace = Workspace(self.system, members)
         return self._step_workspace
@@ -229,10 +243,12 @@ class NonlinearForces:
                    bending_y_rate_t, bending_y_acceleration_t, bending_z_rate_t,
                    work: Workspace, force_t, radial, in_contact,
                    bending_z_acceleration_t=None) -> int:
-        """force_t += f_se + f_ke + imbalance + f_ip (not the bit's) of members-last
-        kinematics (the fields of :class:`Kinematics`, transposed: (n_dofs, m), (n_nodes, m)
-        and (2 n_nodes, m)); bending_z_acceleration_t is needed only with the imbalance on
-        (whose top-drive angle must have been set).
+        """
+        Add f_se + f_ke + imbalance + f_ip (not the bit's) of members-last kinematics to force_t.
+
+        The kinematics are the fields of :class:`Kinematics`, transposed: (n_dofs, m),
+        (n_nodes, m) and (2 n_nodes, m); bending_z_acceleration_t is needed only with the
+        imbalance on (whose top-drive angle must have been set).
 
         radial, in_contact (m, n_nodes) receive the wall forces and flags (zero and False
         without contact physics), work.tangent their tangents. Returns the number of
@@ -251,7 +267,8 @@ class NonlinearForces:
                              work.coupling, force_t, radial, in_contact, work.tangent)
 
     def evaluate(self, fields: Kinematics, germ=None) -> ForceEvaluation:
-        """f_NL for the fields of a batch; ``germ`` (m, 2, 2) randomises the bit-rock law.
+        """
+        f_NL for the fields of a batch; ``germ`` (m, 2, 2) randomises the bit-rock law.
 
         The arrays of the result are new (the integrator keeps results across iterations);
         ``full`` and ``modal`` are transposed views of members-last arrays.

@@ -73,8 +73,11 @@ class CouplingOperators:
 
 
 def _sign(system) -> float:
-    """+1 for the derived T_c, -1 for the sign printed in Eq. 8-11
-    (``lateral_readings.kinetic_coupling``)."""
+    """
+    Return +1 for the derived T_c, -1 for the sign printed in Eq. 8-11.
+
+    The sign is chosen by ``lateral_readings.kinetic_coupling``.
+    """
     return -1.0 if system.model.config.lateral_readings.kinetic_coupling == 'printed' else 1.0
 
 

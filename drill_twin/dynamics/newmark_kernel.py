@@ -1,4 +1,5 @@
-"""The compiled parts of a Newmark step (:mod:`drill_twin.dynamics.newmark` holds the method).
+"""
+The compiled parts of a Newmark step (:mod:`drill_twin.dynamics.newmark` holds the method).
 
 A step is ``begin`` (the predictor), then per iteration ``fields`` (the iterate's
 displacements, rates and the kinematics the forces read, members last), the forces of the
@@ -32,7 +33,8 @@ VERIFY_EVERY = 25
 
 
 class StepWork:
-    """Work arrays of a step for m members (n reduced coordinates), allocated once.
+    """
+    Work arrays of a step for m members (n reduced coordinates), allocated once.
 
     d_pred, v_pred, a, d, v, residual, y: (n, m); modal: (n, m) (Phi^T f of the iterate);
     touch, hole: (m,); per-member state of the iteration: error, previous_error (m,),
@@ -62,9 +64,12 @@ class StepWork:
 @kernel
 def begin(q, q_rate, q_acceleration, hole_in, has_hole, dt, bit_axial_row, d_pred, v_pred, a,
           touch, hole, error, active, bit_ok):
-    """The predictor (state arrays members first (m, n), work arrays members last): d*, v*,
-    a = the last acceleration, the hole and ``touch``, the end-of-step ROP that puts the bit
-    on the hole bottom (Newmark: d = d* + (beta/gamma) dt (v - v*); 0 on bottom)."""
+    """
+    Compute the predictor (state arrays members first (m, n), work arrays members last).
+
+    d*, v*, a = the last acceleration, the hole and ``touch``, the end-of-step ROP that puts the
+    bit on the hole bottom (Newmark: d = d* + (beta/gamma) dt (v - v*); 0 on bottom).
+    """
     members, n = q.shape
     cd = (0.5 - BETA) * dt * dt
     cv = (1.0 - GAMMA) * dt
@@ -93,9 +98,12 @@ def fields(a, d_pred, v_pred, cd, cv, top_speed, top_acceleration, shapes_axial,
            shapes_torsion, shapes_y, shapes_z, ranges, d, v, displacement_t, theta_x_rate_t,
            theta_x_acceleration_t, bending_y_rate_t, bending_y_acceleration_t,
            bending_z_rate_t):
-    """d = d* + beta dt^2 a, v = v* + gamma dt a (n, m), and the kinematics of the forces
-    (forces.Kinematics, members last). ranges (4, 4): rows and columns (start, stop, start,
-    stop) of the axial, torsional, bending-y and bending-z blocks of Phi."""
+    """
+    Set d = d* + beta dt^2 a, v = v* + gamma dt a (n, m), and the kinematics of the forces.
+
+    The kinematics are forces.Kinematics, members last. ranges (4, 4): rows and columns
+    (start, stop, start, stop) of the axial, torsional, bending-y and bending-z blocks of Phi.
+    """
     n, members = a.shape
     for j in range(n):
         for i in range(members):
@@ -126,8 +134,10 @@ def update(iteration, force_t, radial, in_contact, tangent, touching, theta_x_ra
            error, previous_error, active, bit_ok, scratch, flexibilities, on_wall, final_full,
            final_modal, final_radial, final_contact, final_tangent, bit_rop, bit_omega,
            bit_force, bit_torque, bit_lifted, bit_jacobian, bit_solved):
-    """One iteration after the forces of the iterate (force_t, members last, without the
-    bit): the Newmark update of the module docstring of :mod:`newmark`, per member.
+    """
+    One iteration after the forces of the iterate (force_t, members last, without the bit).
+
+    The Newmark update of the module docstring of :mod:`newmark`, per member.
 
     Updates a, error, active, bit_ok, the bit of the active members and the bookkeeping
     (rate, since) in place, and keeps the evaluation of the frozen members (at their final
@@ -273,8 +283,12 @@ def update(iteration, force_t, radial, in_contact, tangent, touching, theta_x_ra
 
 @inline
 def _block_product(blocks, groups, x, out):
-    """out = A x for a block-diagonal A given by its diagonal blocks (4,) on the row groups
-    (4, 2) (start, stop) (an empty group is skipped)."""
+    """
+    Set out = A x for a block-diagonal A given by its diagonal blocks.
+
+    The diagonal blocks (4,) sit on the row groups (4, 2) (start, stop) (an empty group is
+    skipped).
+    """
     for b in range(4):
         start, stop = groups[b, 0], groups[b, 1]
         if stop > start:
@@ -308,8 +322,11 @@ def _touches(in_contact, i, n_nodes):
 @kernel
 def _woodbury(i, in_contact, tangent, n_nodes, dt2, local_directions, local_response,
               local_gram, bit_rows, y, response):
-    """S^-1 with the contact tangents of member i's touching nodes (Woodbury): corrects
-    y[:, i] and response (S^-1 B, (n, 2)) in place; returns B^T S^-1 B (2, 2)."""
+    """
+    S^-1 with the contact tangents of member i's touching nodes (Woodbury).
+
+    Corrects y[:, i] and response (S^-1 B, (n, 2)) in place; returns B^T S^-1 B (2, 2).
+    """
     count = 0
     for node in range(n_nodes):
         if in_contact[i, node]:
@@ -360,10 +377,13 @@ def _woodbury(i, in_contact, tangent, n_nodes, dt2, local_directions, local_resp
 @inline
 def _solve_bit(linear0, linear1, h, start0, start1, touch, gdt, static_force, g11, g12, g22,
                random, law, fade_speed):
-    """x = linear + gamma dt H (F(x) - F_c) for one member (NewmarkIntegrator._solve_bit):
-    one Newton step from the iterate's velocities kept where it stays on the law's cutting
-    branch, else the bracketed solve of :mod:`bit_equation`. Returns (x0, x1, F0, F1,
-    lifted, J00, J01, J10, J11, solved, robust)."""
+    """
+    Solve x = linear + gamma dt H (F(x) - F_c) for one member (NewmarkIntegrator._solve_bit).
+
+    One Newton step from the iterate's velocities kept where it stays on the law's cutting
+    branch, else the bracketed solve of :mod:`bit_equation`. Returns (x0, x1, F0, F1, lifted,
+    J00, J01, J10, J11, solved, robust).
+    """
     f, t, j00, j01, j10, j11 = law_point(start0, start1, g11, g12, g22, random, law)
     lifted = f >= 0.0
     if lifted:
@@ -411,10 +431,13 @@ def _solve_bit(linear0, linear1, h, start0, start1, touch, gdt, static_force, g1
 def finish(d_pred, v_pred, a, cd, cv, bit_axial_row, hole, bit_force, bit_torque,
            static_force, bit_rows, axial_index, torsion_index, final_full, final_modal,
            error, bit_ok, tolerance, q, q_rate, q_acceleration, hole_out, finite, converged):
-    """The end of a step: the bit's exact forces into the final evaluation (final_full
-    (n_dofs, m), final_modal (n, m)), the new state members first (q, q_rate,
-    q_acceleration (m, n), hole_out (m,): the hole only deepens), finite and converged (m,).
-    Returns the number of members converged."""
+    """
+    Finish a step.
+
+    The bit's exact forces into the final evaluation (final_full (n_dofs, m), final_modal (n,
+    m)), the new state members first (q, q_rate, q_acceleration (m, n), hole_out (m,): the hole
+    only deepens), finite and converged (m,). Returns the number of members converged.
+    """
     n, members = a.shape
     count = 0
     for i in range(members):
@@ -440,8 +463,11 @@ def finish(d_pred, v_pred, a, cd, cv, bit_axial_row, hole, bit_force, bit_torque
 
 @kernel
 def step(state, step_inputs, bookkeeping, forces, operators, work, final, out):
-    """One Newmark step of m members: begin, then (fields, forces of the string, update)
-    until every member is done or max_iterations, then finish. Arguments are tuples:
+    """
+    One Newmark step of m members.
+
+    Begin, then (fields, forces of the string, update) until every member is done or
+    max_iterations, then finish. Arguments are tuples:
 
     state: (q, q_rate, q_acceleration (m, n) members first, hole (m,), has_hole);
     step_inputs: (top_speed, top_acceleration, load (n,), max_iterations);

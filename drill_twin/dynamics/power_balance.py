@@ -1,4 +1,5 @@
-"""Energy balance of the lateral motion, term by term (issue 12, section 1).
+"""
+Energy balance of the lateral motion, term by term (issue 12, section 1).
 
 Where does the energy of the lateral modes come from? Along a run, the lateral energy
 E = q'^T M_r q' / 2 + q^T K_r q / 2 (lateral columns of the reduced model: bending in y and z,
@@ -29,7 +30,8 @@ TERMS = ('damping', 'finite_strain', 'kinetic_coupling', 'contact', 'imbalance')
 
 
 class LateralEnergyBalance:
-    """Accumulates the work of every term on the lateral DOFs of a :class:`Simulator`.
+    """
+    Accumulates the work of every term on the lateral DOFs of a :class:`Simulator`.
 
     Call :meth:`update` after every ``simulator.step()``. ``work_j``: term -> (m,) work since
     the start (J); :meth:`energy_j`: the lateral energy now, (m,) (J).

@@ -1,4 +1,5 @@
-"""The rig's drives attached to a simulator (issue 13, docs/DRIVES.md).
+"""
+The rig's drives attached to a simulator (issue 13, docs/DRIVES.md).
 
 ``attach_drives(simulator)`` puts in place what ``simulator.config`` asks for: the dynamic
 top drive (``top_drive.mode: dynamic``) and the drawworks (``drawworks.mode``
@@ -18,9 +19,12 @@ from drill_twin.dynamics.top_drive import attach_top_drive
 
 
 class DriveTrain:
-    """The simulator's ``top_drive`` when a drawworks is attached: before each step the
-    drawworks sets the hook load, then the top drive (kinematic or dynamic) advances.
-    ``speed_rad_per_s`` set back after a failed step also puts the drawworks back."""
+    """
+    The simulator's ``top_drive`` when a drawworks is attached.
+
+    Before each step the drawworks sets the hook load, then the top drive (kinematic or dynamic)
+    advances. ``speed_rad_per_s`` set back after a failed step also puts the drawworks back.
+    """
 
     def __init__(self, top_drive, drawworks: Drawworks):
         self.top_drive = top_drive
@@ -45,8 +49,11 @@ class DriveTrain:
 
 
 def attach_drives(simulator) -> None:
-    """Attach the configured drives to ``simulator`` (module docstring); a second call
-    changes nothing."""
+    """
+    Attach the configured drives to ``simulator`` (module docstring).
+
+    A second call changes nothing.
+    """
     attach_top_drive(simulator)
     if (simulator.config.drawworks.mode != 'hook_load'
             and not isinstance(simulator.top_drive, DriveTrain)):
@@ -55,21 +62,29 @@ def attach_drives(simulator) -> None:
 
 
 def drawworks_of(simulator) -> Drawworks | None:
-    """The simulator's drawworks, or None (hook-load input)."""
+    """Return the simulator's drawworks, or None (hook-load input)."""
     train = simulator.top_drive
     return train.drawworks if isinstance(train, DriveTrain) else None
 
 
 def top_drive_of(simulator):
-    """The simulator's top drive (kinematic or dynamic), under a drawworks if there is one."""
+    """
+    Return the simulator's top drive (kinematic or dynamic).
+
+    It is found under a drawworks if there is one.
+    """
     train = simulator.top_drive
     return train.top_drive if isinstance(train, DriveTrain) else train
 
 
 def set_axial_mode(simulator, mode: str) -> None:
-    """Switch the axial input at run time: 'hook_load' (the hook load command stays what the
-    line last pulled), 'block_velocity' or 'autodriller' (the block starts where the line
-    pulls the current hook load); bumpless either way."""
+    """
+    Switch the axial input at run time.
+
+    'hook_load' (the hook load command stays what the line last pulled), 'block_velocity' or
+    'autodriller' (the block starts where the line pulls the current hook load); bumpless either
+    way.
+    """
     drawworks = drawworks_of(simulator)
     if mode == 'hook_load':
         if drawworks is not None:
@@ -90,10 +105,14 @@ def _replace_top_drive(simulator, new_drive) -> None:
 
 
 def set_top_drive_mode(simulator, mode: str, controller: str | None = None) -> None:
-    """Switch the top drive at run time, bumpless: 'kinematic' (the speed now held, then
-    following commands at ``operation.top_drive_acceleration_rad_per_s2``) or 'dynamic' (the
-    PI integral starts at the string's current torque), with ``controller`` (stiff,
-    soft_torque, impedance; None: the configured one)."""
+    """
+    Switch the top drive at run time, bumpless.
+
+    'kinematic' (the speed now held, then following commands at
+    ``operation.top_drive_acceleration_rad_per_s2``) or 'dynamic' (the PI integral starts at the
+    string's current torque), with ``controller`` (stiff, soft_torque, impedance; None: the
+    configured one).
+    """
     from drill_twin.dynamics.controllers import make_controller
     from drill_twin.dynamics.simulator import TopDrive
     from drill_twin.dynamics.top_drive import DynamicTopDrive
@@ -113,7 +132,7 @@ def set_top_drive_mode(simulator, mode: str, controller: str | None = None) -> N
 
 
 def set_torque_limit(simulator, newton_metre: float) -> None:
-    """The dynamic drive's motor torque limit (N m, > 0), from the next step on."""
+    """Set the dynamic drive's motor torque limit (N m, > 0), from the next step on."""
     drive = top_drive_of(simulator)
     if not hasattr(drive, 'loop'):
         raise ValueError('the torque limit applies to the dynamic top drive only')

@@ -1,4 +1,5 @@
-"""A batch of drill strings stepped in time: state, commands, and what an observer measures.
+"""
+A batch of drill strings stepped in time: state, commands, and what an observer measures.
 
 :class:`Simulator` owns the reduced system, the integrator and the current state of m
 members (all driven by the same top drive and hook). The twin and the offline runs both use
@@ -36,8 +37,11 @@ from drill_twin.modal.reduced_basis import modal_analysis
 
 
 class SimulationDiverged(RuntimeError):
-    """A step produced a non-finite state or did not converge; ``time_s`` says when and
-    ``members`` which members of the batch failed."""
+    """
+    A step produced a non-finite state or did not converge.
+
+    ``time_s`` says when and ``members`` which members of the batch failed.
+    """
 
     def __init__(self, message: str, time_s: float, members=()):
         super().__init__(message)
@@ -55,7 +59,8 @@ SUBSTEP_LEVELS = 4
 
 @dataclass(frozen=True)
 class Observation:
-    """What the rig and the sensors see after a step, per member (arrays of shape (m,)).
+    """
+    What the rig and the sensors see after a step, per member (arrays of shape (m,)).
 
     Bit: depth_m (measured along the string, down from the top's initial position; the same
     as bit_depth_m), rop_m_per_s (the rate the hole deepens: the bit's axial velocity while
@@ -122,13 +127,13 @@ class TopDrive:
 
 
 class Simulator:
-    """m members of one drill string, stepped together (see the module docstring).
+    """
+    m members of one drill string, stepped together (see the module docstring).
 
-    Args:
-        config: the model.
-        members: batch size m.
-        germs: (m, 2, 2) random germs of the bit-rock law, or None (mean model).
-        system: a prebuilt reduced system of ``config`` (built if None).
+    :param config: the model.
+    :param members: batch size m.
+    :param germs: (m, 2, 2) random germs of the bit-rock law, or None (mean model).
+    :param system: a prebuilt reduced system of ``config`` (built if None).
     """
 
     def __init__(self, config: DrillStringConfig, members: int = 1,
@@ -182,17 +187,20 @@ class Simulator:
 
     # -- commands ------------------------------------------------------------------------
     def set_top_drive_speed(self, rad_per_s: float) -> None:
-        """The top-drive speed command (rad/s), followed from the next step on."""
+        """Set the top-drive speed command (rad/s), followed from the next step on."""
         self.top_speed_command_rad_per_s = float(rad_per_s)
 
     def set_hook_load(self, newton: float) -> None:
-        """The hook load command (N), applied from the next step on."""
+        """Set the hook load command (N), applied from the next step on."""
         self.hook_load_command_n = float(newton)
 
     def reset(self, q: np.ndarray | None = None, q_rate: np.ndarray | None = None) -> None:
-        """Restart from reduced coordinates (m, n) and rates, or from the configured initial
-        state, with the bit on the bottom of a hole that ends where the bit is; the commands,
-        the top-drive angle and the event counters are kept."""
+        """
+        Restart from reduced coordinates (m, n) and rates, or from the configured initial state.
+
+        The bit is put on the bottom of a hole that ends where the bit is; the commands, the
+        top-drive angle and the event counters are kept.
+        """
         speed = self.top_drive.speed_rad_per_s
         default_q, default_rate = self._initial_coordinates(speed)
         q = default_q if q is None else np.broadcast_to(q, default_q.shape)
@@ -205,10 +213,13 @@ class Simulator:
         self._on_bottom = self.on_bottom()
 
     def reset_members(self, members) -> None:
-        """Restart ``members`` from a safe state: the configured initial motion under the
-        current top speed, twisted to carry the steady torque on bit, with no lateral
-        deflection, with the bit at its current depth (on or off bottom: the hole is kept).
-        The other members are untouched."""
+        """
+        Restart ``members`` from a safe state.
+
+        The configured initial motion under the current top speed, twisted to carry the steady
+        torque on bit, with no lateral deflection, with the bit at its current depth (on or off
+        bottom: the hole is kept). The other members are untouched.
+        """
         members = np.asarray(members, dtype=int)
         if members.size == 0:
             return
@@ -232,10 +243,12 @@ class Simulator:
 
     # -- stepping ------------------------------------------------------------------------
     def step(self) -> StepResult:
-        """Advance dt; a member whose step fails is retried on sub-steps (module docstring).
+        """
+        Advance dt; a member whose step fails is retried on sub-steps (module docstring).
 
         Raises SimulationDiverged naming the members that fail even on dt/16 (the state of
-        every member is then left as it was)."""
+        every member is then left as it was).
+        """
         start_speed = self.state.top_speed_rad_per_s
         speed = self.top_drive.advance(self.top_speed_command_rad_per_s, self.dt)
         new_state, result = self.integrator.step(self.state, speed, self.hook_load_command_n)
@@ -317,9 +330,13 @@ class Simulator:
         return new_state, merged, retries
 
     def _substep(self, member: int, start_speed: float, speed: float):
-        """Member ``member`` over [t, t + dt] on sub-steps: ((state, forces), attempts), or
-        (None, attempts) if dt / 2**SUBSTEP_LEVELS fails. The top speed is interpolated
-        linearly (the top drive's acceleration is constant over the step)."""
+        """
+        Member ``member`` over [t, t + dt] on sub-steps.
+
+        ((state, forces), attempts), or (None, attempts) if dt / 2**SUBSTEP_LEVELS fails. The
+        top speed is interpolated linearly (the top drive's acceleration is constant over the
+        step).
+        """
         units = 2 ** SUBSTEP_LEVELS
         state = self.state.take([member])
         done, level, attempts, evaluation = 0, 1, 0, None
@@ -341,7 +358,7 @@ class Simulator:
         return (state, evaluation), attempts
 
     def _substep_integrator(self, level: int, member: int) -> NewmarkIntegrator:
-        """The integrator of dt / 2**level for one member (built once per level)."""
+        """Return the integrator of dt / 2**level for one member (built once per level)."""
         integrator = self._substep_integrators.get(level)
         if integrator is None:
             integrator = self.integrator.with_time_step(self.dt / 2 ** level)
@@ -352,7 +369,7 @@ class Simulator:
         return integrator
 
     def hole_u(self) -> np.ndarray:
-        """The hole bottom as the bit's axial displacement, (m,) (m)."""
+        """Return the hole bottom as the bit's axial displacement, (m,) (m)."""
         if self.state.hole_u is None:
             return self._bit_u()
         return self.state.hole_u
@@ -363,8 +380,11 @@ class Simulator:
         return self.system.model.mesh.total_length_m + self.hole_u()
 
     def hole_rop_m_per_s(self, bit_axial_velocity_m_per_s: np.ndarray) -> np.ndarray:
-        """The rate the hole deepens (m/s), (m,): the bit's axial velocity while it is on
-        bottom and moving down, else 0."""
+        """
+        Return the rate the hole deepens (m/s), (m,).
+
+        The bit's axial velocity while it is on bottom and moving down, else 0.
+        """
         return np.where(self.on_bottom(), np.maximum(bit_axial_velocity_m_per_s, 0.0), 0.0)
 
     def on_bottom(self) -> np.ndarray:
@@ -379,7 +399,8 @@ class Simulator:
         return self.state.time_s
 
     def observe(self, detailed: int | None = None) -> Observation:
-        """Measurements at the current state (bit forces from the last converged iterate).
+        """
+        Measurements at the current state (bit forces from the last converged iterate).
 
         ``detailed``: the stations, the top torque and the hook motion are computed for the
         first ``detailed`` members only (all by default); the bit quantities always for all.
@@ -478,8 +499,12 @@ class Simulator:
         return q, q_rate
 
     def _steady_twist(self, top_speed: float) -> np.ndarray:
-        """Torsional coordinates that carry the steady torque on bit and the drag of the
-        spinning string in static equilibrium (K_r q = Phi^T f on the torsional block)."""
+        """
+        Return the torsional coordinates that carry the steady torque on bit and the drag.
+
+        The drag is that of the spinning string; the coordinates are in static equilibrium
+        (K_r q = Phi^T f on the torsional block).
+        """
         system = self.system
         torsion = system.blocks['torsional']
         wob = system.model.prestress.static_weight_on_bit_n
@@ -494,9 +519,11 @@ class Simulator:
 
 
 class _Observer:
-    """What :meth:`Simulator.observe` measures, as rows on the reduced coordinates: a row r
-    of the field-wise DOFs reads r . (Phi q) = (Phi^T r) . q, plus r . psi theta' for the
-    rates and accelerations (the driven rotation moves the theta_x DOFs).
+    """
+    What :meth:`Simulator.observe` measures, as rows on the reduced coordinates.
+
+    A row r of the field-wise DOFs reads r . (Phi q) = (Phi^T r) . q, plus r . psi theta' for
+    the rates and accelerations (the driven rotation moves the theta_x DOFs).
 
     Columns of ``rows(q)``: hook (the top's axial DOF), the stations' (u, v, w) (``fields``,
     station-major), their (theta_x, theta_y, theta_z) (``spins``), the torque balance's mass
@@ -528,13 +555,13 @@ class _Observer:
         self.driven[:physical.shape[0]] = physical[:, system.field(1)].sum(axis=1)
 
     def rows(self, q: np.ndarray) -> np.ndarray:
-        """The observed rows of reduced vectors q (m, n): (m, k)."""
+        """Return the observed rows of reduced vectors q (m, n): (m, k)."""
         return q @ self.operator
 
 
 def _with_member(evaluation: ForceEvaluation, member: int,
                  single: ForceEvaluation) -> ForceEvaluation:
-    """``evaluation`` with row ``member`` replaced by the one-member ``single``."""
+    """Return ``evaluation`` with row ``member`` replaced by the one-member ``single``."""
     def put(array, row):
         out = array.copy()
         out[member] = row[0]

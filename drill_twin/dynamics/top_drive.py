@@ -1,5 +1,8 @@
-"""The top drive as a machine: a rotor of inertia J_d under a PI speed controller with a
-torque limit, driving the string's top (issue 13; docs/DRIVES.md).
+"""
+The top drive as a machine.
+
+A rotor of inertia J_d under a PI speed controller with a torque limit, driving the string's top
+(issue 13; docs/DRIVES.md).
 
 Coupling to the string. The string's top rotation is imposed (``Simulator`` carries it as the
 rigid rotation psi theta_top). The dynamic drive decides each step the top speed omega_{n+1}
@@ -42,9 +45,12 @@ NEWMARK_GAMMA = 0.5
 
 
 def characteristic_impedance(config) -> float:
-    """zeta = I_p sqrt(rho k_s G) of the top section (N m s/rad): the torque per unit of
-    angular velocity a torsional wave carries in the pipe (the model's torsional stiffness is
-    k_s G I_p, docs/MODEL-CHOICES.md)."""
+    """
+    Return zeta = I_p sqrt(rho k_s G) of the top section (N m s/rad).
+
+    The torque per unit of angular velocity a torsional wave carries in the pipe (the model's
+    torsional stiffness is k_s G I_p, docs/MODEL-CHOICES.md).
+    """
     top = config.sections[0]
     polar = math.pi / 32.0 * (top.outer_diameter_m ** 4 - top.inner_diameter_m ** 4)
     shear = top.shear_correction_factor * top.shear_modulus_pa
@@ -52,8 +58,11 @@ def characteristic_impedance(config) -> float:
 
 
 class StringTorque:
-    """The torque the string takes at its top, measured and predicted one step ahead, for
-    member 0 of a :class:`~drill_twin.dynamics.simulator.Simulator` (module docstring)."""
+    """
+    The torque the string takes at its top, measured and predicted one step ahead.
+
+    For member 0 of a :class:`~drill_twin.dynamics.simulator.Simulator` (module docstring).
+    """
 
     def __init__(self, simulator):
         system = simulator.system
@@ -86,8 +95,11 @@ class StringTorque:
         return la.lu_solve(self._solve, vector)
 
     def measured(self) -> float:
-        """T_s at the simulator's current state (N m, > 0 when the drive drives the string):
-        the torque balance of the whole string, as ``Simulator.observe`` computes it."""
+        """
+        T_s at the simulator's current state (N m, > 0 when the drive drives the string).
+
+        The torque balance of the whole string, as ``Simulator.observe`` computes it.
+        """
         sim = self.simulator
         state, forces = sim.state, sim.last
         c = self.columns
@@ -117,8 +129,11 @@ class StringTorque:
 
 
 class PISpeedLoop:
-    """The drive's speed controller: T_m = K_p e + I, I' = K_i e, e = omega_sp - omega,
-    |T_m| <= T_max (N m), integrated backward-Euler and implicitly with the drive's inertia.
+    """
+    The drive's speed controller.
+
+    T_m = K_p e + I, I' = K_i e, e = omega_sp - omega, |T_m| <= T_max (N m), integrated
+    backward-Euler and implicitly with the drive's inertia.
 
     Anti-windup: while the torque is at its limit the integral is frozen.
     """
@@ -132,10 +147,13 @@ class PISpeedLoop:
 
     def solve(self, inertia: float, omega_n: float, setpoint: tuple[float, float], dt: float,
               string_torque_0: float, string_slope: float) -> tuple[float, float, bool]:
-        """(omega_{n+1}, T_m, saturated) of J (omega - omega_n)/dt = T_m - (T_0 + Z omega)
-        with the set-point omega_sp = s_0 + s_1 omega (``setpoint`` = (s_0, s_1): a
-        controller's law may depend on the coming step's torque, hence on omega); updates the
-        integral."""
+        """
+        Return (omega_{n+1}, T_m, saturated) and update the integral.
+
+        Solves J (omega - omega_n)/dt = T_m - (T_0 + Z omega) with the set-point
+        omega_sp = s_0 + s_1 omega (``setpoint`` = (s_0, s_1): a controller's law may depend
+        on the coming step's torque, hence on omega).
+        """
         offset, gain_sp = setpoint
         gain = self.kp + self.ki * dt
         omega = ((inertia / dt * omega_n + gain * offset + self.integral_torque_nm
@@ -152,9 +170,11 @@ class PISpeedLoop:
 
 
 class DynamicTopDrive:
-    """Stands in for the simulator's kinematic top drive (same ``advance`` and
-    ``speed_rad_per_s``): each step solves the drive's motion coupled to the string and
-    returns the top speed the simulator imposes (module docstring).
+    """
+    Stands in for the simulator's kinematic top drive.
+
+    Same ``advance`` and ``speed_rad_per_s``: each step solves the drive's motion coupled to
+    the string and returns the top speed the simulator imposes (module docstring).
 
     ``speed_rad_per_s`` set back to the speed before the last ``advance`` (what the simulator
     does when a step fails) also puts the controller's state back.
@@ -191,7 +211,7 @@ class DynamicTopDrive:
         self._undo = None
 
     def advance(self, command_rad_per_s: float, dt: float) -> float:
-        """The top speed at the end of the coming step (rad/s) under the speed command."""
+        """Return the top speed at the end of the coming step (rad/s) under the speed command."""
         if dt != self.string.dt:
             raise ValueError(f'the dynamic top drive steps with dt = {self.string.dt} s, '
                              f'not {dt} s')
@@ -215,8 +235,11 @@ class DynamicTopDrive:
 
 
 def attach_top_drive(simulator) -> None:
-    """Replace the simulator's kinematic top drive by the dynamic one when the configuration
-    asks for it (``top_drive.mode: dynamic``); nothing otherwise."""
+    """
+    Replace the simulator's kinematic top drive by the dynamic one if configured.
+
+    Done when the configuration asks for it (``top_drive.mode: dynamic``); nothing otherwise.
+    """
     from drill_twin.dynamics.controllers import make_controller
     config = simulator.config.top_drive
     current = getattr(simulator.top_drive, 'top_drive', simulator.top_drive)

@@ -1,4 +1,5 @@
-"""Steady forced whirl of the linearised string: the closed form that checks the imbalance.
+"""
+Steady forced whirl of the linearised string: the closed form that checks the imbalance.
 
 A mass imbalance m e at node k, spinning at a constant Omega, loads the node with the
 rotating force m e Omega^2 (cos(Omega t + phi), sin(Omega t + phi)). The linearised,
@@ -27,7 +28,8 @@ from drill_twin.fem.model import FiniteElementModel
 
 @dataclass(frozen=True)
 class ForcedWhirl:
-    """Steady response of a node to a rotating unit-phase force.
+    """
+    Steady response of a node to a rotating unit-phase force.
 
     spin_rad_per_s: Omega; v, w: complex amplitudes at the node (m), phase measured from the
     force's direction (the imbalance's angle); radius_m: the orbit's mean radius
@@ -47,7 +49,11 @@ class ForcedWhirl:
 
 def forced_whirl(model: FiniteElementModel, node: int, unbalance_kg_m: float,
                  spin_rad_per_s: float) -> ForcedWhirl:
-    """The steady whirl of ``node`` under an imbalance m e (kg m) spinning at Omega (rad/s)."""
+    """
+    Return the steady whirl of ``node`` under an imbalance.
+
+    The imbalance m e (kg m) spins at Omega (rad/s).
+    """
     omega = float(spin_rad_per_s)
     free = model.free
     dynamic = (model.total_stiffness - omega ** 2 * model.total_mass

@@ -1,6 +1,9 @@
-"""Linear whirl stability of the spinning string when Rayleigh's stiffness-proportional damping
-acts on the strain rates of the spinning string (internal, rotating damping) - one reading of
-the paper to test for its lateral response (issue 12, section 1).
+"""
+Linear whirl stability of the spinning string under internal, rotating damping.
+
+Here Rayleigh's stiffness-proportional damping acts on the strain rates of the spinning string
+(internal, rotating damping) - one reading of the paper to test for its lateral response
+(issue 12, section 1).
 
 In the fixed frame the paper's damping is [C] = alpha (M + M_f) + beta (K + K_f + K_g), acting
 on u'. Read as material damping, the beta term acts on the strain rates of the string, i.e. on
@@ -49,7 +52,8 @@ def quarter_turn(n_dofs: int) -> np.ndarray:
 def whirl_growth_rates(model: FiniteElementModel, spin_rad_per_s: float,
                        rotating_damping: bool = True
                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Eigenvalues of the linearised lateral motion at a constant spin.
+    """
+    Eigenvalues of the linearised lateral motion at a constant spin.
 
     Returns (growth rate Re s (1/s), frequency Im s (rad/s), forward) of every eigenvalue
     with Im s > 0, sorted by frequency; forward: the mode whirls with the spin (its

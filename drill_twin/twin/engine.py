@@ -1,4 +1,5 @@
-"""The twin's engine: the mean model and an online ensemble stepped together, ROS-free.
+"""
+The twin's engine: the mean model and an online ensemble stepped together, ROS-free.
 
 The mean model (the bit-rock law of the paper's Eq. 25-26) is a batch of one; the online
 ensemble (:mod:`~drill_twin.twin.ensemble`), N realizations of the random law, is a batch of
@@ -49,8 +50,12 @@ class CommandRejected(ValueError):
 
 @dataclass(frozen=True)
 class CommandLimits:
-    """The operator's command ranges (rad/s and N), a clamp on top of what the model can
-    represent (the hook load's range derived from the string, :mod:`.envelope`)."""
+    """
+    The operator's command ranges (rad/s and N).
+
+    A clamp on top of what the model can represent (the hook load's range derived from the
+    string, :mod:`.envelope`).
+    """
 
     top_drive_speed_max_rad_per_s: float = 30.0
     hook_load_min_n: float = 0.0
@@ -72,7 +77,8 @@ class BitState:
 
 @dataclass(frozen=True)
 class TwinSnapshot:
-    """The twin after a tick (SI units).
+    """
+    The twin after a tick (SI units).
 
     bit: the mean model's bit; ensemble_mean, ensemble_lower (2.5 %), ensemble_upper (97.5 %):
     over the random members, at the ensemble's own step ``ensemble_step`` and time
@@ -102,14 +108,14 @@ class TwinSnapshot:
 
 
 class TwinEngine:
-    """Mean model + online ensemble, stepped in ticks of ``substeps`` model steps.
+    """
+    Mean model + online ensemble, stepped in ticks of ``substeps`` model steps.
 
-    Args:
-        config: the model.
-        ensemble: ensemble size, dispersion, seed, and whether it runs in a worker process.
-        limits: accepted command ranges.
-        kpi_window_s: moving window of the stick-slip severity and the MSE (s).
-        system: a prebuilt reduced system of ``config`` (built if None).
+    :param config: the model.
+    :param ensemble: ensemble size, dispersion, seed, and whether it runs in a worker process.
+    :param limits: accepted command ranges.
+    :param kpi_window_s: moving window of the stick-slip severity and the MSE (s).
+    :param system: a prebuilt reduced system of ``config`` (built if None).
 
     Call :meth:`close` when done (it stops an ensemble worker process).
     """
@@ -185,11 +191,13 @@ class TwinEngine:
         self.simulator.set_top_drive_speed(float(rad_per_s))
 
     def set_hook_load(self, newton: float) -> None:
-        """Hook load command (N), applied from the next step; raises CommandRejected.
+        """
+        Set the hook load command (N), applied from the next step; raises CommandRejected.
 
         Accepted inside the operator's limits and the range the model can represent (the
         string's weight minus the largest WOB up to the weight plus the drag of a string
-        rising at block speed, :class:`~drill_twin.twin.envelope.StringEnvelope`)."""
+        rising at block speed, :class:`~drill_twin.twin.envelope.StringEnvelope`).
+        """
         self._check('hook load', newton, self.limits.hook_load_min_n,
                     self.limits.hook_load_max_n, 'N', self._hook_load_reason)
         self.simulator.set_hook_load(float(newton))
@@ -318,13 +326,16 @@ class TwinEngine:
 
     @kpi_window_s.setter
     def kpi_window_s(self, seconds: float) -> None:
-        """The KPI window (s); the ring buffer holds one sample per model step."""
+        """Set the KPI window (s); the ring buffer holds one sample per model step."""
         self._kpi_window_s = float(seconds)
         self._window.resize(int(math.ceil(self._kpi_window_s / self.dt)) + 1)
 
     def advance(self, steps: int) -> TwinSnapshot:
-        """Step the mean model ``steps`` times (the ensemble likewise, one tick behind) and
-        return the snapshot of the last step."""
+        """
+        Step the mean model ``steps`` times and return the snapshot of the last step.
+
+        The ensemble is stepped likewise, one tick behind.
+        """
         start = time.perf_counter()
         self._exchange_with_ensemble(steps)
         iterations = 0
@@ -347,8 +358,11 @@ class TwinEngine:
         return self.snapshot()
 
     def _exchange_with_ensemble(self, steps: int) -> None:
-        """Collect the ensemble's previous tick and hand it this one, under the commands
-        in force for the mean model's coming steps."""
+        """
+        Collect the ensemble's previous tick and hand it this one.
+
+        This tick runs under the commands in force for the mean model's coming steps.
+        """
         if self.ensemble_runner is None:
             return
         try:
@@ -368,7 +382,8 @@ class TwinEngine:
         self._ensemble_latest = latest
 
     def _watch(self, before, now) -> None:
-        """Events of the mean model between two steps' force evaluations.
+        """
+        Events of the mean model between two steps' force evaluations.
 
         Wall contact: one 'impact' per contact episode of a node (it opens when the node
         penetrates the wall; dynamics/contact_events.py), with the node's depth and the force
@@ -411,8 +426,11 @@ class TwinEngine:
 
     # -- results -------------------------------------------------------------------------
     def kpi_window_samples(self) -> np.ndarray:
-        """The mean model's samples inside the KPI window, one per step: columns time (s),
-        bit speed (rad/s), ROP (m/s), WOB (N), TOB (N m); shape (n, 5)."""
+        """
+        Return the mean model's samples inside the KPI window, one per step.
+
+        Columns time (s), bit speed (rad/s), ROP (m/s), WOB (N), TOB (N m); shape (n, 5).
+        """
         window = self._window.values()
         return window[window[:, 0] >= self.time_s - self.kpi_window_s - 1e-9]
 
@@ -458,8 +476,11 @@ class TwinEngine:
                                                      self.envelope.string_weight_n))
 
     def _kpis(self) -> tuple[float | None, float | None, float | None]:
-        """(stick-slip severity, MSE in Pa, ROP in m/h) over the KPI window; None where a
-        value cannot be computed (fewer than two samples, non-finite)."""
+        """
+        (stick-slip severity, MSE in Pa, ROP in m/h) over the KPI window.
+
+        None where a value cannot be computed (fewer than two samples, non-finite).
+        """
         window = self.kpi_window_samples()
         if window.shape[0] < 2:
             return None, None, None
@@ -472,8 +493,11 @@ class TwinEngine:
 
 
 def _quantiles(values: np.ndarray, *probabilities):
-    """Quantiles along axis 0 by linear interpolation (numpy's default method), computed
-    directly: np.quantile's overhead dominates for a handful of members."""
+    """
+    Quantiles along axis 0 by linear interpolation (numpy's default method), computed directly.
+
+    np.quantile's overhead dominates for a handful of members.
+    """
     ordered = np.sort(values, axis=0)
     last = ordered.shape[0] - 1
     out = []
