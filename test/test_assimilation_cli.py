@@ -91,7 +91,7 @@ def test_assimilate_refuses_bad_input_in_one_line(rig_log, tmp_path, args, words
 
 
 def test_assimilate_refuses_a_log_without_measurements(tmp_path):
-    from drill_twin.recording.synthetic import write_synthetic_log
+    from synthetic import write_synthetic_log
 
     path = tmp_path / 'twin.mcap'
     write_synthetic_log(path, duration_s=0.5)
