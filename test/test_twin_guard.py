@@ -250,6 +250,13 @@ def test_every_bound_of_the_guard_trips(config):
         2 * guard.kinetic_energy_max(simulator.state.top_speed_rad_per_s))
     reasons = guard.check(simulator)
     assert 'exceeds what the hook and the top drive could have supplied' in reasons[0]
+    simulator.state = saved.copy()
+
+    # A compressive spike (the rock pushing the bit up: f_bit < 0) reads as a positive WOB.
+    simulator.last.weight_on_bit_n[0] = -2.0 * guard.weight_on_bit_max_n
+    (reason,) = guard.check(simulator).values()
+    assert reason == (f'WOB {2.0 * guard.weight_on_bit_max_n:.4g} N (compression > 0) is '
+                      f'beyond +-{guard.weight_on_bit_max_n:.4g} N')
 
 
 # -- KPIs: finite or nothing -----------------------------------------------------------------

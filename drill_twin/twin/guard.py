@@ -180,6 +180,9 @@ class StateGuard:
                 if name == 'kinetic_energy':
                     return (f'kinetic energy {value:.3g} J exceeds what the hook and the top '
                             f'drive could have supplied ({bound:.3g} J)')
+                if name == 'wob':                   # the rock's force on the bit, up < 0
+                    return (f'WOB {-value:.4g} N (compression > 0) is beyond '
+                            f'+-{bound:.4g} N')
                 return f'{what} {value:.4g} {unit} is beyond +-{bound:.4g} {unit}'
         radius = values['radius'][k]
         node = int(np.argmax(radius - self.lateral_max_m))
