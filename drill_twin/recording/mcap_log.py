@@ -24,9 +24,11 @@ plays back by); ``publish_time`` defaults to it.
 """
 from __future__ import annotations
 
+import contextlib
 import importlib.metadata
 import operator
 import os
+import signal
 import threading
 import time
 from typing import Mapping
@@ -130,6 +132,26 @@ def _check_time(value, what: str) -> int:
     if not 0 <= value < _UINT64_END:
         raise ValueError(f'{what} must be in [0, 2**64) ns, got {value}')
     return value
+
+
+_STOP_SIGNALS = {signal.SIGINT, signal.SIGTERM}
+
+
+@contextlib.contextmanager
+def _signals_deferred():
+    """
+    Hold SIGINT and SIGTERM back from this thread while the writer writes records.
+
+    A Python handler (KeyboardInterrupt) raised between two bytes of a chunk would leave half
+    a record in the file, and the summary that ``finish`` then writes after it would make a
+    complete-looking file no reader can read through. The signal is delivered when the block
+    is left.
+    """
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 class McapLog:
@@ -299,8 +321,9 @@ class McapLog:
             if (self._flush_interval_ns is not None and self._last_flush_log_ns is not None
                     and log_time_ns - self._last_flush_log_ns >= self._flush_interval_ns):
                 self._flush_locked()                 # a chunk spans one interval of log time
-            self._writer.add_message(channel_id=channel_id, log_time=log_time_ns, data=data,
-                                     publish_time=publish_time_ns, sequence=0)
+            with _signals_deferred():               # a full chunk is written here
+                self._writer.add_message(channel_id=channel_id, log_time=log_time_ns,
+                                         data=data, publish_time=publish_time_ns, sequence=0)
             self._counts[topic] += 1
             if self._flush_interval_ns is not None:
                 if self._last_flush_log_ns is None:
@@ -317,7 +340,8 @@ class McapLog:
             self._flush_locked()
 
     def _flush_locked(self) -> None:
-        self._writer.flush()
+        with _signals_deferred():
+            self._writer.flush()
         self._last_flush_ns = time.monotonic_ns()
         self._last_flush_log_ns = None
 
@@ -328,7 +352,8 @@ class McapLog:
                 return
             self._finished = True
             try:
-                self._writer.finish()
+                with _signals_deferred():
+                    self._writer.finish()
             finally:
                 self._raw.close()
 
