@@ -132,3 +132,59 @@ def test_axial_input_switches_at_run_time_without_a_jump():
     held = simulator.hook_load_command_n
     simulator.step()
     assert simulator.observe().hook_load_n == held
+
+
+def test_the_block_accelerates_at_most_at_the_drums_limit():
+    """
+    A block-velocity step is followed at the configured acceleration, a ramp, not a jump.
+
+    The block starts at the top's speed (bumpless), moves by a_max dt a step towards the
+    command, then holds it exactly; the autodriller's integral is held back with it.
+    """
+    limit = 0.25
+    config = load_config(overrides=QUIET + [f'drawworks.block_acceleration_max_m_per_s2={limit}'])
+    simulator = Simulator(config)
+    attach_drives(simulator)
+    set_axial_mode(simulator, 'block_velocity')
+    drawworks = drawworks_of(simulator)
+    drawworks.set_block_velocity(-0.5)
+    start = drawworks.block_velocity_m_per_s
+    velocities = []
+    for _ in range(int(round(3.0 / simulator.dt))):
+        simulator.step()
+        velocities.append(drawworks.block_velocity_m_per_s)
+    velocities = np.array(velocities)
+    steps_to_reach = int(math.ceil((start + 0.5) / (limit * simulator.dt)))
+    ramp = start - limit * simulator.dt * np.arange(1, steps_to_reach)
+    np.testing.assert_allclose(velocities[:steps_to_reach - 1], ramp, rtol=0, atol=1e-12)
+    assert np.all(velocities[steps_to_reach:] == -0.5)
+    with pytest.raises(Exception, match='block_acceleration_max_m_per_s2'):
+        load_config(overrides=['drawworks.block_acceleration_max_m_per_s2=0'])
+
+
+def test_a_restart_from_a_safe_state_puts_the_block_where_the_line_holds_it():
+    """
+    After a member is restarted, the line pulls the hook load the safe state was built for.
+
+    Without the reseat the block stays where it was and the line's stretch no longer matches
+    the string: the next step's hook load jumps by k_line times the top's displacement.
+    """
+    config = load_config(overrides=QUIET + ['drawworks.mode=block_velocity',
+                                            'drawworks.block_velocity_m_per_s=-0.3'])
+    simulator = Simulator(config)
+    attach_drives(simulator)
+    drawworks = drawworks_of(simulator)
+    for _ in range(int(round(3.0 / simulator.dt))):      # lifting: the top has moved
+        simulator.step()
+    simulator.reset_members([0])
+    assert line_hook_load_n(drawworks) == pytest.approx(
+        simulator.hook_load_command_n, rel=1e-9, abs=1.0 + drawworks.line_damping * abs(
+            drawworks.top.now()[1] - drawworks.block_velocity_m_per_s))
+    # The safe state is at rest off bottom while the block goes on rising: the next step's hook
+    # load differs by the line's damping and one step of stretch, not k_line x 0.9 m (18 MN).
+    held = simulator.hook_load_command_n
+    simulator.step()
+    speed = 0.3
+    bound = (drawworks.line_damping * speed + drawworks.line_stiffness * speed * simulator.dt
+             + 0.01 * held)
+    assert abs(simulator.observe().hook_load_n - held) <= bound

@@ -460,11 +460,13 @@ class Drawworks:
     travelling block moves at ``block_velocity_m_per_s`` (down > 0) and holds the top through a
     drill line of ``line_stiffness_n_per_m`` and ``line_damping_n_s_per_m``, the hook load is
     measured; ``autodriller``: the block velocity regulated (PI) to hold
-    ``weight_on_bit_setpoint_n`` (> 0, compression).
+    ``weight_on_bit_setpoint_n`` (> 0, compression). In either the block's velocity changes at
+    most at ``block_acceleration_max_m_per_s2`` (the drum's motor and brake).
     """
 
     mode: DrawworksMode = 'hook_load'
     block_velocity_m_per_s: float = 0.0
+    block_acceleration_max_m_per_s2: float = 0.2
     line_stiffness_n_per_m: float = 2.0e7
     line_damping_n_s_per_m: float = 2.0e5
     weight_on_bit_setpoint_n: float = 100.0e3
@@ -475,7 +477,7 @@ class Drawworks:
         if not math.isfinite(self.block_velocity_m_per_s):
             raise ConfigValueError('block_velocity_m_per_s', 'must be finite')
         _at_most(self, 'block_velocity_m_per_s', BLOCK_SPEED_MAX_M_PER_S, BLOCK_SPEED_REASON)
-        _positive(self, 'line_stiffness_n_per_m')
+        _positive(self, 'line_stiffness_n_per_m', 'block_acceleration_max_m_per_s2')
         _non_negative(self, 'line_damping_n_s_per_m', 'weight_on_bit_setpoint_n',
                       'autodriller_proportional_m_per_s_per_n',
                       'autodriller_integral_m_per_s2_per_n')

@@ -17,7 +17,13 @@ taken from the last converged step), so H is solved implicitly with the string's
 block, as the top drive's torque is (drill_twin/dynamics/top_drive.py).
 
 The autodriller regulates v_b = v_I + K_p e, v_I' = K_i e, e = WOB_sp - WOB (WOB > 0 in
-compression, measured at the last step).
+compression, measured at the last step). In both modes v_b moves towards its target by at most
+a_max dt a step (``block_acceleration_max_m_per_s2``): a velocity step would ring the string's
+axial modes (a 0.25 m/s stop swings the bit by 0.45 m/s), which no drum does. The autodriller's
+integral is held back with the block (anti-windup).
+
+After a member is restarted from a safe state, :meth:`Drawworks.reseat` puts the block where
+the line pulls that state's hook load (as when the drawworks takes over).
 
 Member 0 is the reference member (the hook load is shared by the batch).
 """
@@ -91,18 +97,24 @@ class Drawworks:
         self.line_stiffness = config.line_stiffness_n_per_m
         self.line_damping = config.line_damping_n_s_per_m
         position, velocity = self.top.now()
-        self.block_position_m = position - (simulator.hook_load_command_n
-                                            - self.top.static_hook_load_n) / self.line_stiffness
+        self.block_position_m = 0.0
         """x_b, m (down > 0, from the prestressed state): where the line pulls the hook load
-        the simulator had (no jump when the drawworks takes over)."""
+        the simulator had (no jump when the drawworks takes over, :meth:`reseat`)."""
+        self.reseat()
         self.block_velocity_command_m_per_s = config.block_velocity_m_per_s
         self.weight_on_bit_setpoint_n = config.weight_on_bit_setpoint_n
         self.kp = config.autodriller_proportional_m_per_s_per_n
         self.ki = config.autodriller_integral_m_per_s2_per_n
+        self.acceleration_max_m_per_s2 = config.block_acceleration_max_m_per_s2
         self.autodriller_integral_m_per_s = velocity      # bumpless: the top's start speed
-        self.block_velocity_m_per_s = (self.block_velocity_command_m_per_s
-                                       if self.mode == 'block_velocity' else velocity)
+        self.block_velocity_m_per_s = velocity            # the block ramps from the top's speed
         self.hook_load_n = float(simulator.hook_load_command_n)
+
+    def reseat(self) -> None:
+        """Put the block where the line pulls the simulator's hook load command now."""
+        position, _ = self.top.now()
+        self.block_position_m = position - (self.simulator.hook_load_command_n
+                                            - self.top.static_hook_load_n) / self.line_stiffness
 
     def set_mode(self, mode: str) -> None:
         """'block_velocity' or 'autodriller' (switch at run time; bumpless)."""
@@ -130,9 +142,14 @@ class Drawworks:
         if self.mode == 'autodriller':
             error = self.weight_on_bit_setpoint_n - self.measured_weight_on_bit_n()
             self.autodriller_integral_m_per_s += self.ki * dt * error
-            self.block_velocity_m_per_s = self.autodriller_integral_m_per_s + self.kp * error
+            target = self.autodriller_integral_m_per_s + self.kp * error
         else:
-            self.block_velocity_m_per_s = self.block_velocity_command_m_per_s
+            target = self.block_velocity_command_m_per_s
+        reach = self.acceleration_max_m_per_s2 * dt
+        now = self.block_velocity_m_per_s
+        self.block_velocity_m_per_s = min(max(target, now - reach), now + reach)
+        if self.mode == 'autodriller':                   # anti-windup
+            self.autodriller_integral_m_per_s += self.block_velocity_m_per_s - target
         self.block_position_m += dt * self.block_velocity_m_per_s
         u0, v0 = self.top.predicted(0.0)
         k, c = self.line_stiffness, self.line_damping

@@ -42,6 +42,10 @@ class DriveTrain:
         self._undo = None
         self.top_drive.speed_rad_per_s = value
 
+    def after_reset(self) -> None:
+        """Reseat the block: the simulator restarted members from a safe state."""
+        self.drawworks.reseat()
+
     def advance(self, command_rad_per_s: float, dt: float) -> float:
         self._undo = (self.top_drive.speed_rad_per_s, copy.copy(self.drawworks.__dict__))
         self.drawworks.before_step()

@@ -240,6 +240,8 @@ class Simulator:
             getattr(self.state, name)[members] = getattr(fresh, name)[members]
         self.integrator.forget(members)
         self.last = self._evaluate(self.state)
+        if (after_reset := getattr(self.top_drive, 'after_reset', None)) is not None:
+            after_reset()                              # a drawworks puts its block back
 
     # -- stepping ------------------------------------------------------------------------
     def step(self) -> StepResult:
