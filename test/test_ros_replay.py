@@ -87,7 +87,7 @@ def test_resimulation_reproduces_the_recorded_run(twin_log):
     calls = []
     result = resimulate(twin_log, progress=lambda done, total: calls.append((done, total)))
     assert result.commands == 3
-    assert result.compared == 200                      # 4 s at 50 Hz (log_state_rate_hz)
+    assert result.compared == 100                      # 4 s at 25 Hz (log_state_rate_hz)
     # Progress in simulated seconds: from 0 to the whole 4 s, every 1000 steps and at the end.
     assert calls[0] == (0.0, 4.0) and calls[-1] == (4.0, 4.0) and len(calls) == 2
     # mean, lower and upper at 10 Hz (ticks 10, 20, ..., 400, stamped a tick behind): the
@@ -102,7 +102,7 @@ def test_resimulate_command(twin_log):
                             cwd=REPO, timeout=300)
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip().endswith('identical')
-    assert '200 bit states compared, 3 commands replayed' in result.stdout
+    assert '100 bit states compared, 3 commands replayed' in result.stdout
     assert '120 ensemble mean and bound states compared' in result.stdout
 
 
@@ -113,7 +113,7 @@ def test_resimulate_the_first_split_alone(twin_log):
 
     first = log_files(twin_log)[0]
     result = resimulate(first)
-    assert 95 <= result.compared < 200 and result.identical          # 2 s at 50 Hz
+    assert 47 <= result.compared < 100 and result.identical          # 2 s at 25 Hz
 
 
 def _altered_log(twin_log, path, config_change=None, seed_change=0):

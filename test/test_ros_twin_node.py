@@ -610,7 +610,7 @@ def test_log_is_complete_and_equal_to_what_was_heard(recorded):
     assert itf.BIT_STATE in thinned and itf.KPI_ROP not in thinned
 
     # The every-tick states: the first tick at or after each multiple of the period of
-    # log_state_rate_hz (50 Hz).
+    # log_state_rate_hz (25 Hz).
     period = round(1e9 / recorded['twin'].node.params.log_state_rate_hz)
     heard = {stamp_ns(m): m for m in received[itf.BIT_STATE]}
     first_in_period, start = {}, -(-min(heard) // period) * period

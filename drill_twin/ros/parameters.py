@@ -53,7 +53,7 @@ PARAMETERS = (
     ParameterSpec('log_split_s', 300.0, 'log time (s) an MCAP split of the log holds at most '
                   '(rosbag2\'s max_bag_duration): only the split being written can be cut by '
                   'a crash or a full disk', safe=False, low=1.0, high=86400.0),
-    ParameterSpec('log_state_rate_hz', 50.0, 'largest rate (per second of twin time) at '
+    ParameterSpec('log_state_rate_hz', 25.0, 'largest rate (per second of twin time) at '
                   'which the every-tick states (bit, top, wall contacts, stations, TF) are '
                   'logged; they are published every tick, everything else is logged as '
                   'published', safe=True, low=1.0, high=1000.0),
