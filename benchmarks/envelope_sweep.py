@@ -66,8 +66,10 @@ class Driller:
     commands are the twin's short names (drill_twin.interface.COMMANDS).
     """
 
-    def __init__(self, weight_n: float, rng: np.random.Generator, start_s: float = 5.0):
+    def __init__(self, weight_n: float, rng: np.random.Generator, start_s: float = 5.0,
+                 pick_up_probability: float = 0.12):
         self.weight_n = weight_n
+        self.pick_up_probability = pick_up_probability
         self.rng = rng
         self.phase = 'drill'
         self.axial = 'hook_load'
@@ -91,7 +93,7 @@ class Driller:
                 return []
             self.next_s = t + float(rng.exponential(15.0))
             draw = rng.uniform()
-            if draw < 0.12 and off < 1e-3:
+            if draw < self.pick_up_probability and off < 1e-3:
                 self.phase, self.pick_ups = 'pick_up', self.pick_ups + 1
                 self.target_m = float(rng.uniform(0.5, 3.0))
                 return [('axial_mode', 'block_velocity'),
@@ -137,7 +139,7 @@ def run_offline(args, config, weight, duration):
         config = load_config(None, [f'integration.time_step_s={args.time_step!r}'])
     engine = TwinEngine(config, EnsembleSettings(members=args.members, dispersion=args.delta,
                                                  seed=args.seed, separate_process=False))
-    driller = Driller(weight, np.random.default_rng(args.seed))
+    driller = Driller(weight, np.random.default_rng(args.seed), pick_up_probability=args.pick_ups)
     setters = {'top_drive_speed': engine.set_top_drive_speed, 'hook_load': engine.set_hook_load,
                'axial_mode': engine.set_axial_mode, 'block_velocity': engine.set_block_velocity,
                'wob_setpoint': engine.set_weight_on_bit_setpoint}
@@ -191,6 +193,8 @@ def main(argv=None) -> int:
     parser.add_argument('--offline', action='store_true',
                         help='drive the twin\'s engine in this process (no ROS, no log)')
     parser.add_argument('--verbose', action='store_true', help='print every reset (offline)')
+    parser.add_argument('--pick-ups', type=float, default=0.12,
+                        help='probability that a change on bottom is a pick-up (0: none)')
     args = parser.parse_args(argv)
 
     folder = Path(tempfile.mkdtemp(prefix='envelope_sweep_'))
@@ -261,22 +265,37 @@ def main(argv=None) -> int:
     node.create_subscription(Clock, itf.CLOCK, on_clock,
                              QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
     node.create_subscription(DiagnosticArray, itf.DIAGNOSTICS, on_diagnostics, 1000)
+    def on_mode_applied(message):
+        state['mode_applied'] = message.name[0].split('=', 1)[1] if message.name else None
+
+    from sensor_msgs.msg import JointState
+    node.create_subscription(JointState, itf.cmd_applied_topic(itf.CMD_AXIAL_MODE),
+                             on_mode_applied, 10)
     node.create_subscription(Float64, itf.SURFACE_BIT_DEPTH, keep('bit'), 10)
     node.create_subscription(Float64, itf.SURFACE_HOLE_DEPTH, keep('hole'), 10)
 
-    driller = Driller(weight, np.random.default_rng(args.seed))
+    driller = Driller(weight, np.random.default_rng(args.seed), pick_up_probability=args.pick_ups)
     start = time.monotonic()
     twin = subprocess.Popen(command, env=env, cwd=ROOT)
-    sent = 0
+    sent, queue = 0, []
+    state['mode_applied'] = 'hook_load'
     try:
         while twin.poll() is None:
             rclpy.spin_once(node, timeout_sec=0.02)
             if state['hole'] <= 0.0:                    # no reading yet
                 continue
-            for name, value in driller.commands(state['twin_s'], state['bit'], state['hole']):
+            queue += driller.commands(state['twin_s'], state['bit'], state['hole'])
+            # A set-point that depends on the axial mode waits for the mode's echo: commands on
+            # different topics may arrive in any order.
+            while queue and (queue[0][0] == 'axial_mode'
+                             or state['mode_applied'] == state.get('mode_sent', 'hook_load')):
+                name, value = queue.pop(0)
                 publisher, kind = publishers[name]
                 publisher.publish(kind(data=value))
                 sent += 1
+                if name == 'axial_mode':
+                    state['mode_sent'] = value
+                    break
     except (KeyboardInterrupt, ExternalShutdownException):
         twin.send_signal(signal.SIGINT)
     finally:

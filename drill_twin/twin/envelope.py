@@ -148,15 +148,25 @@ def _bha_weight(model, weight_n: float) -> float:
 
 
 def largest_torque_on_bit_nm(law: BitRockLaw, top_speed_max_rad_per_s: float,
-                             weight_on_bit_max_n: float) -> float:
+                             weight_on_bit_max_n: float, germs: np.ndarray | None = None):
     """
     Return the largest |TOB| of the bit-rock law over the envelope (N m).
 
     Bit speeds 0 ... the top speed, at the steady ROP of the largest WOB, the ROP capped at the
     block speed (a law whose ROP exceeds it is itself implausible and is caught on the ROP).
+    With ``germs`` (m, 2, 2): the largest |TOB| of each member's random law at the same points
+    (Eq. 50), shape (m,), never below the mean law's.
     """
     omega = np.linspace(0.01, max(top_speed_max_rad_per_s, 0.01), 400)
     rop = np.clip(law.steady_rop(omega, -weight_on_bit_max_n), 0.0,
                   PLAUSIBLE_BLOCK_SPEED_M_PER_S)
-    torque = law.mean(rop, omega)[1]
-    return float(np.max(np.abs(torque)))
+    force, torque = law.mean(rop, omega)
+    mean = float(np.max(np.abs(torque)))
+    if germs is None:
+        return mean
+    largest = np.empty(len(germs))
+    for m, germ in enumerate(germs):
+        _, random = law.randomised(force, torque, rop, rop, omega,
+                                   np.broadcast_to(germ, (omega.size, 2, 2)))
+        largest[m] = max(float(np.max(np.abs(random))), mean)
+    return largest

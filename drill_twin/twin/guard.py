@@ -16,7 +16,9 @@ multiples stated here:
   (stick-slip peaks reach two to three times the top speed);
 - |WOB| <= FORCE_MULTIPLE x (WOB_max + Z v_block): the envelope's weight on bit plus the
   impact of a landing at block speed on the bottom section's impedance Z;
-- |TOB| <= FORCE_MULTIPLE x the largest torque of the bit-rock law over the envelope;
+- |TOB| <= FORCE_MULTIPLE x the largest torque of the member's bit-rock law over the envelope
+  (the mean law, or the member's random law of Eq. 50: at delta = 0.1 up to 1.2 times the mean
+  law's);
 - with wall contact modelled, every node's radial displacement <= its clearance plus the
   penetration PENETRATION_MULTIPLE x m_e c Omega^2 / k_ip (the wall force that holds the
   heaviest element whirling at the clearance at the envelope's top speed);
@@ -53,9 +55,10 @@ class StateGuard:
     :param system: the reduced system the simulator steps.
     :param law: its bit-rock law (for the torque scale).
     :param envelope: the string's scales (derived from ``system`` if None).
+    :param germs: (m, 2, 2) the members' random germs, or None (the mean law).
     """
 
-    def __init__(self, system, law, envelope: StringEnvelope | None = None):
+    def __init__(self, system, law, envelope: StringEnvelope | None = None, germs=None):
         config = system.model.config
         self.system = system
         self.envelope = envelope or StringEnvelope.of(system)
@@ -64,9 +67,10 @@ class StateGuard:
         self.axial_speed_max_m_per_s = SPEED_MULTIPLE * block
         self.weight_on_bit_max_n = FORCE_MULTIPLE * (e.weight_on_bit_max_n
                                                      + e.axial_impedance_n_s_per_m * block)
-        self.torque_on_bit_max_nm = FORCE_MULTIPLE * max(
+        self.torque_on_bit_max_nm = FORCE_MULTIPLE * np.maximum(
             largest_torque_on_bit_nm(law, ENVELOPE_TOP_DRIVE_SPEED_MAX_RAD_PER_S,
-                                     e.weight_on_bit_max_n), TORQUE_FLOOR_NM)
+                                     e.weight_on_bit_max_n, germs), TORQUE_FLOOR_NM)
+        """Scalar (mean law) or (m,) (the members' random laws) (N m)."""
         stiffness = config.borehole.contact_stiffness_n_per_m
         self.bit_penetration_m = self.weight_on_bit_max_n / stiffness
         self.lateral = config.physics.contact
@@ -175,6 +179,7 @@ class StateGuard:
                  'tob': ('TOB', 'N m'), 'kinetic_energy': ('kinetic energy', 'J')}
         for name, bound in self._bounds(top_speed_rad_per_s).items():
             value = float(values[name][k])
+            bound = float(bound[k]) if np.ndim(bound) else bound
             if abs(value) > bound:
                 what, unit = words[name]
                 if name == 'kinetic_energy':

@@ -76,7 +76,8 @@ class GuardedSimulator:
         self.simulator = simulator
         self.first_member = first_member
         self.name = name
-        self.guard = guard or StateGuard(simulator.system, simulator.law)
+        self.guard = guard or StateGuard(simulator.system, simulator.law,
+                                         germs=simulator.integrator.germ)
         self.level = 'error' if first_member == 0 else 'warn'
         self.events: list[TwinEvent] = []
         self.resets = 0
