@@ -4,10 +4,11 @@ from __future__ import annotations
 import argparse
 import sys
 
-from drill_twin.cli import startup_signals
+from drill_twin.cli import blas_threads, startup_signals
 
 if startup_signals.wanted(sys.argv):
     startup_signals.install()       # before the heavy imports below: SIGINT honoured at once
+blas_threads.limit_to_one()         # before numpy is imported
 
 from drill_twin import __version__  # noqa: E402
 from drill_twin.cli import map as map_command  # noqa: E402
