@@ -113,22 +113,10 @@ class MemberState:
             raise ValueError(f'state vectors must have shape ({m}, {self.size})')
         state = sim.state
         was_on_bottom = sim.on_bottom()[:m]
-        q, rate = state.q.copy(), state.q_rate.copy()
-        rows = np.arange(m)[:, None]
-        q[rows, self.columns] = vectors[:, :k]
-        rate[rows, self.columns] = vectors[:, k:2 * k]
+        q, rate = state.q[:m].copy(), state.q_rate[:m].copy()
+        q[:, self.columns] = vectors[:, :k]
+        rate[:, self.columns] = vectors[:, k:2 * k]
         offset = np.where(was_on_bottom, 0.0, np.maximum(vectors[:, 2 * k], 0.0))
-        hole = sim.hole_u().copy()
-        hole[:m] = q[:m] @ self._bit_row + offset
-        if self.parameters == 'germ':
-            germ = sim.integrator.germ.copy()
-            germ[:m] = coordinates_to_germ(vectors[:, 2 * k + 1:2 * k + 4])
-            sim.integrator.germ = germ
-        fresh = sim.integrator.initial_state(q, rate, state.top_speed_rad_per_s,
-                                             state.hook_load_n, top_angle_rad=state.top_angle_rad,
-                                             hole_u=hole)
-        for name in ('q', 'q_rate', 'q_acceleration', 'hole_u'):
-            getattr(state, name)[:m] = getattr(fresh, name)[:m]
-        sim.integrator.forget(np.arange(m))
-        sim.last = sim.integrator.evaluate(state)
-        sim._on_bottom = sim.on_bottom()           # no false landing counted at the next step
+        germs = (coordinates_to_germ(vectors[:, 2 * k + 1:2 * k + 4])
+                 if self.parameters == 'germ' else None)
+        sim.set_members(q, rate, q @ self._bit_row + offset, germs)

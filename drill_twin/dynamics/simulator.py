@@ -243,6 +243,39 @@ class Simulator:
         if (after_reset := getattr(self.top_drive, 'after_reset', None)) is not None:
             after_reset()                              # a drawworks puts its block back
 
+    def set_members(self, q: np.ndarray, q_rate: np.ndarray, hole_u: np.ndarray,
+                    germs: np.ndarray | None = None) -> None:
+        """
+        Put the first k members' reduced coordinates, rates and hole bottoms in place.
+
+        An analysis step of data assimilation (drill_twin.assimilation) moves members this way.
+        q, q_rate: (k, n); hole_u: (k,) the hole bottom as the bit's axial displacement (m);
+        germs: (k, 2, 2) new random germs of those members, or None (kept). The accelerations
+        follow from the equations of motion at the new state, the members' contraction-rate
+        history is dropped, and the jump counts as no landing or lift-off.
+        """
+        q = np.asarray(q, dtype=float)
+        k = q.shape[0]
+        if not 0 < k <= self.members:
+            raise ValueError(f'set_members: {k} members given, the batch has {self.members}')
+        if germs is not None:
+            if self.integrator.germ is None:
+                raise ValueError('set_members: germs given for the mean model (no germs)')
+            germ = self.integrator.germ.copy()
+            germ[:k] = germs
+            self.integrator.germ = germ
+        state = self.state
+        new_q, new_rate, hole = state.q.copy(), state.q_rate.copy(), self.hole_u().copy()
+        new_q[:k], new_rate[:k], hole[:k] = q, q_rate, hole_u
+        fresh = self.integrator.initial_state(new_q, new_rate, state.top_speed_rad_per_s,
+                                              state.hook_load_n,
+                                              top_angle_rad=state.top_angle_rad, hole_u=hole)
+        for name in ('q', 'q_rate', 'q_acceleration', 'hole_u'):
+            getattr(state, name)[:k] = getattr(fresh, name)[:k]
+        self.integrator.forget(np.arange(k))
+        self.last = self._evaluate(state)
+        self._on_bottom = self.on_bottom()
+
     # -- stepping ------------------------------------------------------------------------
     def step(self) -> StepResult:
         """
