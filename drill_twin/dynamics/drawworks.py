@@ -7,10 +7,11 @@ set-point, holding the string's top through the drill line (issue 13, docs/DRIVE
 The paper's axial input is a hook force. A rig sets instead the block's motion; the hook load
 is what the line pulls, measured:
 
-    H = H_S + k_l (u_top - x_b) + c_l (u_top' - v_b),   H >= 0 (a slack line pulls nothing),
+    H = H_S + k_l (u_top - x_b - s) + c_l (u_top' - v_b),   H >= 0 (a slack line pulls nothing),
 
 u_top the top's axial displacement from the prestressed state (down > 0), x_b and v_b the
-block's displacement and velocity from the same state, H_S the prestressed hook load. The
+block's displacement and velocity from the same state, s the line paid out since (after a
+restart, below), H_S the prestressed hook load. The
 simulator takes the hook load of the coming step as a force; u_top after the step is affine
 in it (the axial block is linear; the bit force, the only non-linear axial force here, is
 taken from the last converged step), so H is solved implicitly with the string's axial
@@ -22,13 +23,14 @@ a_max dt a step (``block_acceleration_max_m_per_s2``): a velocity step would rin
 axial modes (a 0.25 m/s stop swings the bit by 0.45 m/s), which no drum does. The autodriller's
 integral is held back with the block (anti-windup).
 
-After a member is restarted from a safe state, :meth:`Drawworks.reseat` puts the block where
-the line pulls that state's hook load (as when the drawworks takes over).
+After a member is restarted from a safe state, :meth:`Drawworks.reseat` pays out or takes in
+line (s, zero until then) so that it pulls that state's hook load; the block does not jump.
 
 Member 0 is the reference member (the hook load is shared by the batch).
 """
 from __future__ import annotations
 
+import numpy as np
 import scipy.linalg as la
 
 from drill_twin.config.schema import Drawworks as DrawworksConfig
@@ -81,6 +83,24 @@ class TopAxialMotion:
         return (float(self.row @ (d_pred + NEWMARK_BETA * dt * dt * a_new)),
                 float(self.row @ (v_pred + NEWMARK_GAMMA * dt * a_new)))
 
+    def now_members(self) -> tuple[np.ndarray, np.ndarray]:
+        """(u_top, u_top') of every member at the current state, (m,) each (m, m/s)."""
+        state, c = self.simulator.state, self.columns
+        return state.q[:, c] @ self.row, state.q_rate[:, c] @ self.row
+
+    def predicted_members(self) -> tuple[np.ndarray, np.ndarray]:
+        """(u_top, u_top') of every member after the step under a zero hook load, (m,) each."""
+        sim, dt, c = self.simulator, self.dt, self.columns
+        state = sim.state
+        q, v, a = state.q[:, c], state.q_rate[:, c], state.q_acceleration[:, c]
+        d_pred = q + dt * v + (0.5 - NEWMARK_BETA) * dt * dt * a
+        v_pred = v + (1.0 - NEWMARK_GAMMA) * dt * a
+        load = (sim.last.modal[:, c] - v_pred @ self.damping.T - d_pred @ self.stiffness.T
+                + self.row * self.static_hook_load_n)
+        a_new = la.lu_solve(self._factor, load.T).T
+        return ((d_pred + NEWMARK_BETA * dt * dt * a_new) @ self.row,
+                (v_pred + NEWMARK_GAMMA * dt * a_new) @ self.row)
+
 
 class Drawworks:
     """
@@ -97,10 +117,13 @@ class Drawworks:
         self.line_stiffness = config.line_stiffness_n_per_m
         self.line_damping = config.line_damping_n_s_per_m
         position, velocity = self.top.now()
-        self.block_position_m = 0.0
+        self.line_slack_m = 0.0
+        """s (m): the line's length change since the drawworks took over (:meth:`reseat`)."""
+        position, _ = self.top.now()
+        self.block_position_m = position - (simulator.hook_load_command_n
+                                            - self.top.static_hook_load_n) / self.line_stiffness
         """x_b, m (down > 0, from the prestressed state): where the line pulls the hook load
-        the simulator had (no jump when the drawworks takes over, :meth:`reseat`)."""
-        self.reseat()
+        the simulator had (no jump when the drawworks takes over)."""
         self.block_velocity_command_m_per_s = config.block_velocity_m_per_s
         self.weight_on_bit_setpoint_n = config.weight_on_bit_setpoint_n
         self.kp = config.autodriller_proportional_m_per_s_per_n
@@ -111,10 +134,15 @@ class Drawworks:
         self.hook_load_n = float(simulator.hook_load_command_n)
 
     def reseat(self) -> None:
-        """Put the block where the line pulls the simulator's hook load command now."""
+        """
+        Pay out or take in line so that it pulls the simulator's hook load command now.
+
+        The block does not jump (an ensemble follows it): the line's slack s takes the change.
+        """
         position, _ = self.top.now()
-        self.block_position_m = position - (self.simulator.hook_load_command_n
-                                            - self.top.static_hook_load_n) / self.line_stiffness
+        self.line_slack_m = (position - self.block_position_m
+                             - (self.simulator.hook_load_command_n
+                                - self.top.static_hook_load_n) / self.line_stiffness)
 
     def set_mode(self, mode: str) -> None:
         """'block_velocity' or 'autodriller' (switch at run time; bumpless)."""
@@ -153,7 +181,8 @@ class Drawworks:
         self.block_position_m += dt * self.block_velocity_m_per_s
         u0, v0 = self.top.predicted(0.0)
         k, c = self.line_stiffness, self.line_damping
-        rest = (self.top.static_hook_load_n + k * (u0 - self.block_position_m)
+        rest = (self.top.static_hook_load_n
+                + k * (u0 - self.block_position_m - self.line_slack_m)
                 + c * (v0 - self.block_velocity_m_per_s))
         slope = (1.0 - k * self.top.displacement_slope_m_per_n
                  - c * self.top.velocity_slope_m_per_s_per_n)
@@ -166,5 +195,64 @@ def line_hook_load_n(drawworks: Drawworks) -> float:
     """Return the line's pull at the current state (N): the hook load as measured."""
     u, v = drawworks.top.now()
     return max(drawworks.top.static_hook_load_n
-               + drawworks.line_stiffness * (u - drawworks.block_position_m)
+               + drawworks.line_stiffness * (u - drawworks.block_position_m
+                                             - drawworks.line_slack_m)
                + drawworks.line_damping * (v - drawworks.block_velocity_m_per_s), 0.0)
+
+
+class FollowedBlock:
+    """
+    Every member's drill line hung from one block that moves as the rig's (the ensemble's input).
+
+    The ensemble's members are one string on uncertain rock: the rig moves one block and each
+    member's line pulls its own hook load,
+
+        H_m = H_S + k_l (u_top,m - x_b - s_m) + c_l (u_top,m' - v_b),   H_m >= 0,
+
+    solved with each member's axial block as :class:`Drawworks` does for member 0. s_m, the
+    slack of member m's line, is set when the block is first followed (each line then pulls the
+    hook load its member had: no jump) and again for members restarted from a safe state
+    (:meth:`reseat`). Without it the members took the mean model's hook load as a force: a
+    member whose hole was deeper than the mean model's fell further when the mean model set down.
+    """
+
+    def __init__(self, simulator, config: DrawworksConfig):
+        self.simulator = simulator
+        self.top = TopAxialMotion(simulator)
+        self.line_stiffness = config.line_stiffness_n_per_m
+        self.line_damping = config.line_damping_n_s_per_m
+        self.slack_m = None
+        """s_m (m,), None until the block is first followed."""
+        self.block_position_m = 0.0
+
+    def follow(self, block_position_m: float, block_velocity_m_per_s: float) -> np.ndarray:
+        """Set every member's hook load for the coming step; the block ends it at x_b (N, (m,))."""
+        top = self.top
+        k, c = self.line_stiffness, self.line_damping
+        if self.slack_m is None:
+            self.block_position_m = block_position_m
+            self.reseat(np.arange(self.simulator.members))
+        self.block_position_m = block_position_m
+        u0, v0 = top.predicted_members()
+        rest = (top.static_hook_load_n + k * (u0 - block_position_m - self.slack_m)
+                + c * (v0 - block_velocity_m_per_s))
+        slope = 1.0 - k * top.displacement_slope_m_per_n - c * top.velocity_slope_m_per_s_per_n
+        loads = np.maximum(rest / slope, 0.0)
+        self.simulator.set_hook_load(loads)
+        return loads
+
+    def reseat(self, members) -> None:
+        """Set the slack of ``members`` so that their lines pull their hook loads now."""
+        members = np.asarray(members, dtype=int)
+        hook = np.broadcast_to(np.asarray(self.simulator.hook_load_command_n, dtype=float),
+                               (self.simulator.members,))
+        position, _ = self.top.now_members()
+        slack = (position - self.block_position_m
+                 - (hook - self.top.static_hook_load_n) / self.line_stiffness)
+        if self.slack_m is None:
+            self.slack_m = np.zeros(self.simulator.members)
+        self.slack_m[members] = slack[members]
+
+    def release(self) -> None:
+        """Stop following (back to one hook load for the batch): the next follow reseats all."""
+        self.slack_m = None

@@ -74,7 +74,8 @@ class BatchState:
 
     q, q_rate, q_acceleration: reduced coordinates and derivatives, shape (m, n).
     top_angle_rad, top_speed_rad_per_s, top_acceleration_rad_per_s2: the driven rotation
-    (shared by all members); hook_load_n: the hook load in force. hole_u: the hole bottom as
+    (shared by all members); hook_load_n: the hook load in force (N), one for the batch or one
+    per member, (m,) (an ensemble whose lines follow the rig's block). hole_u: the hole bottom as
     an axial displacement of the bit from the prestressed state, (m,) (m, down): the deepest
     the bit has been; the bit is off bottom when its displacement is smaller. None: the bit
     is on bottom (the hole bottom is where the bit is).
@@ -87,21 +88,24 @@ class BatchState:
     top_angle_rad: float
     top_speed_rad_per_s: float
     top_acceleration_rad_per_s2: float
-    hook_load_n: float
+    hook_load_n: float | np.ndarray
     hole_u: np.ndarray | None = None
 
     def copy(self) -> 'BatchState':
         return BatchState(self.time_s, self.q.copy(), self.q_rate.copy(),
                           self.q_acceleration.copy(), self.top_angle_rad,
                           self.top_speed_rad_per_s, self.top_acceleration_rad_per_s2,
-                          self.hook_load_n, None if self.hole_u is None else self.hole_u.copy())
+                          np.copy(self.hook_load_n) if np.ndim(self.hook_load_n)
+                          else self.hook_load_n,
+                          None if self.hole_u is None else self.hole_u.copy())
 
     def take(self, members) -> 'BatchState':
         """Return the state of ``members`` (indices) only, copied."""
         return BatchState(self.time_s, self.q[members].copy(), self.q_rate[members].copy(),
                           self.q_acceleration[members].copy(), self.top_angle_rad,
                           self.top_speed_rad_per_s, self.top_acceleration_rad_per_s2,
-                          self.hook_load_n,
+                          np.asarray(self.hook_load_n)[members].copy()
+                          if np.ndim(self.hook_load_n) else self.hook_load_n,
                           None if self.hole_u is None else self.hole_u[members].copy())
 
 
@@ -316,9 +320,17 @@ class NewmarkIntegrator:
                                  self.germ)
 
     def _external_load(self, top_speed, top_acceleration, hook_load_n):
+        """
+        Return the modal load of the driven rotation and the hook, (n,) or (m, n).
+
+        ``hook_load_n``: one hook load for the batch (N), or one per member, (m,).
+        """
         system = self.system
-        return (-system.mass_driven * top_acceleration - system.damping_driven * top_speed
-                - self.top_axial_row * (hook_load_n - self.static_hook_load_n))
+        driven = -system.mass_driven * top_acceleration - system.damping_driven * top_speed
+        change = np.asarray(hook_load_n, dtype=float) - self.static_hook_load_n
+        if change.ndim == 0:
+            return driven - self.top_axial_row * float(change)
+        return driven[None, :] - change[:, None] * self.top_axial_row[None, :]
 
     def _stiffness_times(self, q):
         if self._stiffness_diagonal is not None:
@@ -345,6 +357,8 @@ class NewmarkIntegrator:
                                                       + top_speed_rad_per_s)
         load = self._external_load(top_speed_rad_per_s, top_acceleration, hook_load_n)
         members = state.q.shape[0]
+        load_by_member = np.empty((load.shape[-1], members))        # (n, m), the kernel's
+        load_by_member[:] = load.T if load.ndim == 2 else load[:, None]
         work = self._step_work(members)
         has_hole = state.hole_u is not None
         bookkeeping = self._bookkeeping()              # restored if the step fails
@@ -368,7 +382,8 @@ class NewmarkIntegrator:
             (np.ascontiguousarray(state.q), np.ascontiguousarray(state.q_rate),
              np.ascontiguousarray(state.q_acceleration),
              state.hole_u if has_hole else work.touch, has_hole),
-            (float(top_speed_rad_per_s), float(top_acceleration), load, self.max_iterations),
+            (float(top_speed_rad_per_s), float(top_acceleration), load_by_member,
+             self.max_iterations),
             (have_rate, have_active, self._rate, self._steps_since_verified, previous_contact,
              previous_lifted),
             self._forces_arguments, self._operators + self._bit_constants, work.arrays,

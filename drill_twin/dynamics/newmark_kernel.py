@@ -184,9 +184,8 @@ def update(iteration, force_t, radial, in_contact, tangent, touching, theta_x_ra
         np.dot(stiffness, work_d, product)
         residual += product
     for j in range(n):
-        g = load[j]
         for i in range(members):
-            residual[j, i] = residual[j, i] - modal[j, i] - g
+            residual[j, i] = residual[j, i] - modal[j, i] - load[j, i]
     _block_product(effective_inverse, groups, residual, y)
     # S^-1 with the contact tangents (Woodbury), members on the wall only.
     for i in range(members):
@@ -470,7 +469,7 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out):
     max_iterations, then finish. Arguments are tuples:
 
     state: (q, q_rate, q_acceleration (m, n) members first, hole (m,), has_hole);
-    step_inputs: (top_speed, top_acceleration, load (n,), max_iterations);
+    step_inputs: (top_speed, top_acceleration, load (n, m), max_iterations);
     bookkeeping: (have_rate, have_active, rate, since, previous_contact, previous_lifted);
     forces: the arguments of forces.string_forces before the kinematics (the last: the
     imbalance's, excitation.ImbalanceForce.arguments);

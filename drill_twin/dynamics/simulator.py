@@ -71,8 +71,8 @@ class Observation:
     same reference; never decreases), on_bottom (the bit within 1 um of the hole bottom),
     bit_axial_velocity_m_per_s (du_bit/dt, < 0 moving up). Top: top_torque_nm (the torque
     the top drive applies, > 0 when driving), top_speed_rad_per_s, top_angle_rad (shared),
-    hook_load_n (shared), hook_position_m, hook_velocity_m_per_s (the top's axial
-    displacement and velocity). Stations (m, n_stations, 3) for the fields (u, v, w):
+    hook_load_n (shared, or (m,) per member), hook_position_m, hook_velocity_m_per_s (the
+    top's axial displacement and velocity). Stations (m, n_stations, 3) for the fields (u, v, w):
     station_displacement_m, station_velocity_m_per_s, station_acceleration_m_per_s2;
     station_spin_rate_rad_per_s (m, n_stations, 3) for
     (theta_x', theta_y', theta_z'). Wall: contact_force_n (m, n_nodes) radial force,
@@ -94,7 +94,7 @@ class Observation:
     top_torque_nm: np.ndarray
     top_speed_rad_per_s: float
     top_angle_rad: float
-    hook_load_n: float
+    hook_load_n: float | np.ndarray
     hook_position_m: np.ndarray
     hook_velocity_m_per_s: np.ndarray
     station_displacement_m: np.ndarray
@@ -154,6 +154,8 @@ class Simulator:
         self._substep_integrators: dict[int, NewmarkIntegrator] = {}
         self.law = BitRockLaw.from_config(config.bit_rock)
         self.dt = integration.time_step_s
+        self.reset_listeners = []
+        """Called with the members restarted by :meth:`reset_members` (after the restart)."""
         prestress = system.model.prestress
         hook = config.operation.hook_load_n
         self.hook_load_command_n = prestress.hook_load_n if hook is None else hook
@@ -190,9 +192,20 @@ class Simulator:
         """Set the top-drive speed command (rad/s), followed from the next step on."""
         self.top_speed_command_rad_per_s = float(rad_per_s)
 
-    def set_hook_load(self, newton: float) -> None:
-        """Set the hook load command (N), applied from the next step on."""
-        self.hook_load_command_n = float(newton)
+    def set_hook_load(self, newton) -> None:
+        """
+        Set the hook load command (N), applied from the next step on.
+
+        One value for the whole batch, or one per member, shape (m,) (each member's own drill
+        line, :class:`~drill_twin.dynamics.drawworks.FollowedBlock`).
+        """
+        if np.ndim(newton) == 0:
+            self.hook_load_command_n = float(newton)
+            return
+        loads = np.array(newton, dtype=float)
+        if loads.shape != (self.members,):
+            raise ValueError(f'hook loads must have shape ({self.members},), got {loads.shape}')
+        self.hook_load_command_n = loads
 
     def reset(self, q: np.ndarray | None = None, q_rate: np.ndarray | None = None) -> None:
         """
@@ -242,6 +255,8 @@ class Simulator:
         self.last = self._evaluate(self.state)
         if (after_reset := getattr(self.top_drive, 'after_reset', None)) is not None:
             after_reset()                              # a drawworks puts its block back
+        for listener in self.reset_listeners:          # e.g. an ensemble's lines
+            listener(members)
 
     def set_members(self, q: np.ndarray, q_rate: np.ndarray, hole_u: np.ndarray,
                     germs: np.ndarray | None = None) -> None:
@@ -374,12 +389,14 @@ class Simulator:
         """
         units = 2 ** SUBSTEP_LEVELS
         state = self.state.take([member])
+        hook = self.hook_load_command_n
+        hook = hook[[member]] if np.ndim(hook) else hook
         done, level, attempts, evaluation = 0, 1, 0, None
         while done < units:
             size = units >> level
             integrator = self._substep_integrator(level, member)
             target = start_speed + (speed - start_speed) * (done + size) / units
-            new, result = integrator.step(state, target, self.hook_load_command_n)
+            new, result = integrator.step(state, target, hook)
             attempts += 1
             if result.success:
                 state, evaluation = new, result.forces

@@ -209,8 +209,9 @@ class TwinEngine:
         return self.envelope.hook_load_reason(newton)
 
     # The rig's drives (issue 13, docs/DRIVES.md): the mean model's simulator takes them; the
-    # ensemble keeps its configured drives under the speed set-point and the hook load the
-    # mean model applies (``_exchange_with_ensemble``).
+    # ensemble keeps its configured top drive under the speed set-point and, axially, takes the
+    # hook load the mean model applies or, with the drawworks, hangs every member's line from
+    # the mean model's block (``_exchange_with_ensemble``).
     def set_top_drive_mode(self, mode: str) -> None:
         """Switch the top drive, 'kinematic' or 'dynamic' (bumpless); raises CommandRejected."""
         self._check_choice('top-drive mode', mode, ('kinematic', 'dynamic'))
@@ -367,8 +368,11 @@ class TwinEngine:
             return
         try:
             latest = self.ensemble_runner.collect()
+            drawworks = rig.drawworks_of(self.simulator)
+            block = (None if drawworks is None else
+                     (drawworks.block_position_m, drawworks.block_velocity_m_per_s))
             self.ensemble_runner.start(steps, self.top_drive_speed_command,
-                                       self.hook_load_command)
+                                       self.hook_load_command, block)
         except (EnsembleFailed, TwinStalled) as error:
             self.ensemble_runner.close()
             self.ensemble_runner, self._ensemble_latest = None, None

@@ -30,6 +30,8 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from drill_twin.config.schema import DrillStringConfig
+from drill_twin.dynamics import rig
+from drill_twin.dynamics.drawworks import FollowedBlock
 from drill_twin.dynamics.simulator import Simulator
 from drill_twin.twin.stepping import GuardedSimulator, TwinEvent
 from drill_twin.uncertainty.executors import SINGLE_THREADED_BLAS
@@ -106,6 +108,10 @@ class LocalEnsemble:
                                        range(settings.members))
         simulator = Simulator(config, members=settings.members, germs=germs, system=system)
         self.guarded = GuardedSimulator(simulator, first_member=1, name='ensemble members')
+        if rig.drawworks_of(simulator) is not None:    # the lines follow the rig's block
+            rig.set_axial_mode(simulator, 'hook_load')
+        self.block = FollowedBlock(simulator, config.drawworks)
+        simulator.reset_listeners.append(self._reseat)
         self.step_index = 0
         self._request = None
         self.latest = self._result(0.0)
@@ -114,21 +120,38 @@ class LocalEnsemble:
     def simulator(self) -> Simulator:
         return self.guarded.simulator
 
-    def start(self, steps: int, top_drive_speed_rad_per_s: float, hook_load_n: float) -> None:
-        """Take a tick's work: ``steps`` model steps under these commands."""
-        self._request = (steps, top_drive_speed_rad_per_s, hook_load_n)
+    def start(self, steps: int, top_drive_speed_rad_per_s: float, hook_load_n: float,
+              block=None) -> None:
+        """
+        Take a tick's work: ``steps`` model steps under these commands.
+
+        block: None (every member under ``hook_load_n``), or the rig's block as (position at
+        the tick's start m, velocity m/s): each member's line then hangs from it
+        (:class:`~drill_twin.dynamics.drawworks.FollowedBlock`).
+        """
+        self._request = (steps, top_drive_speed_rad_per_s, hook_load_n, block)
+
+    def _reseat(self, members) -> None:
+        if self.block.slack_m is not None:
+            self.block.reseat(members)
 
     def collect(self) -> EnsembleResult:
         """Do the pending tick's work, if any, and return the ensemble's latest result."""
         if self._request is None:
             return self.latest
         start = time.perf_counter()
-        steps, speed, hook = self._request
+        steps, speed, hook, block = self._request
         self._request = None
         self.simulator.set_top_drive_speed(speed)
-        self.simulator.set_hook_load(hook)
+        if block is None:
+            self.block.release()
+            self.simulator.set_hook_load(hook)
         iterations = 0
-        for _ in range(steps):
+        for step in range(steps):
+            if block is not None:
+                position, velocity = block
+                self.block.follow(position + (step + 1) * self.simulator.dt * velocity,
+                                  velocity)
             result = self.guarded.step()
             if result is not None:
                 self.step_index += 1
@@ -188,9 +211,10 @@ class EnsembleProcess:
             self.close()
             raise
 
-    def start(self, steps: int, top_drive_speed_rad_per_s: float, hook_load_n: float) -> None:
+    def start(self, steps: int, top_drive_speed_rad_per_s: float, hook_load_n: float,
+              block=None) -> None:
         try:
-            self._connection.send((steps, top_drive_speed_rad_per_s, hook_load_n))
+            self._connection.send((steps, top_drive_speed_rad_per_s, hook_load_n, block))
         except OSError as error:
             raise EnsembleFailed(self._ended(error)) from None
         self._pending = True
