@@ -293,6 +293,8 @@ def main(argv=None) -> int:
                 publisher, kind = publishers[name]
                 publisher.publish(kind(data=value))
                 sent += 1
+                print(f'  [{state["twin_s"]:8.2f} s] command {name} {value} (bit '
+                      f'{state["hole"] - state["bit"]:.3f} m off bottom)', flush=True)
                 if name == 'axial_mode':
                     state['mode_sent'] = value
                     break
