@@ -104,6 +104,10 @@ def test_the_hook_load_limits_must_be_ordered():
 def test_the_model_overrides_of_the_node():
     values = validate_ros_arguments(['-p', 'time_step_s:=0.02', '-p', 'model_overrides:=["a=1"]'])
     assert model_overrides(values) == ['integration.time_step_s=0.02', 'a=1']
+    values = validate_ros_arguments(['-p', 'top_drive_controller:=impedance', '-p',
+                                     'model_overrides:=["a=1"]'])
+    assert model_overrides(values) == ['integration.time_step_s=0.005',
+                                       'top_drive.controller=impedance', 'a=1']
 
 
 # -- signals at start-up ------------------------------------------------------------------------

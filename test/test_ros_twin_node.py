@@ -498,9 +498,11 @@ def test_safe_parameters_change_and_take_effect(twin_factory):
     twin = twin_factory()
     twin.spin_to(0.1)
     results = _set_parameters(twin, kpi_window_s=2.0, top_drive_speed_max_rad_per_s=6.0,
-                              ensemble_rate_hz=20.0)
-    assert results == [(True, '')] * 3
+                              ensemble_rate_hz=20.0, top_drive_controller='impedance')
+    assert results == [(True, '')] * 4
     node = twin.node
+    assert node.engine.top_drive_controller == 'impedance'
+    assert _set_parameters(twin, top_drive_controller='bogus')[0][0] is False
     assert node.get_parameter('kpi_window_s').value == 2.0
     assert node.engine.kpi_window_s == 2.0
     assert node.engine.limits.top_drive_speed_max_rad_per_s == 6.0

@@ -21,6 +21,10 @@ class ParameterSpec:
     high: float | None = None
     choices: tuple = ()
 
+    def choices_text(self) -> str:
+        """Return the choices as a message lists them ('' shown as '')."""
+        return ', '.join(c if c else "''" for c in self.choices)
+
 
 PARAMETERS = (
     ParameterSpec('model_config', '', 'model configuration YAML (empty: the built-in defaults, '
@@ -69,6 +73,10 @@ PARAMETERS = (
                   safe=True, low=0.01, high=100.0),
     ParameterSpec('kpi_window_s', 10.0, 'moving window of the stick-slip severity and MSE (s)',
                   safe=True, low=0.1, high=3600.0),
+    ParameterSpec('top_drive_controller', '', 'stick-slip controller of the dynamic top drive: '
+                  'stiff, soft_torque or impedance (empty: the model configuration\'s '
+                  'top_drive.controller); at run time as the top_drive_controller command',
+                  safe=True, choices=('', 'stiff', 'soft_torque', 'impedance')),
     ParameterSpec('top_drive_speed_max_rad_per_s', 30.0, 'largest accepted top-drive speed '
                   'command (rad/s)', safe=True, low=0.0, high=100.0),
     ParameterSpec('hook_load_min_n', 0.0, 'smallest accepted hook-load command (N)', safe=True,
@@ -123,7 +131,7 @@ def markdown_table() -> str:
 
     def span(p):
         if p.choices:
-            return ', '.join(p.choices)
+            return ', '.join(c if c else "'' (the configuration's)" for c in p.choices)
         number = (lambda x: str(x) if isinstance(x, int) else f'{x:g}')
         return '' if p.low is None else f'{number(p.low)} … {number(p.high)}'
 
@@ -206,7 +214,7 @@ def check_parameter(name: str, value, origin: str = ''):
             raise ParameterError(origin, name, f'expected a list of strings, got {value!r}')
     _check_range(spec, value, origin)
     if spec.choices and value not in spec.choices:
-        raise ParameterError(origin, name, f'must be one of {", ".join(spec.choices)}; got '
+        raise ParameterError(origin, name, f'must be one of {spec.choices_text()}; got '
                                            f'{value!r}')
     return value
 
@@ -316,12 +324,14 @@ def model_overrides(values) -> list[str]:
     """
     Return the ``--set`` items the node applies to its model configuration.
 
-    ``time_step_s`` (when > 0) first, then ``model_overrides`` (``values``: a dict or
-    TwinParameters).
+    ``time_step_s`` (when > 0) first, ``top_drive_controller`` (when set), then
+    ``model_overrides`` (``values``: a dict or TwinParameters).
     """
     if not isinstance(values, dict):
         values = values.as_dict()
     overrides = [item for item in (values.get('model_overrides') or []) if item]
+    if values.get('top_drive_controller'):
+        overrides.insert(0, f'top_drive.controller={values["top_drive_controller"]}')
     if values.get('time_step_s', 0) > 0:
         overrides.insert(0, f'integration.time_step_s={values["time_step_s"]!r}')
     return overrides

@@ -578,7 +578,7 @@ class TwinNode(Node):
                                            reason=unsafe_change_reason(parameter.name))
             if spec is not None and spec.choices and parameter.value not in spec.choices:
                 return SetParametersResult(successful=False, reason=(
-                    f'{parameter.name} must be one of {", ".join(spec.choices)}'))
+                    f'{parameter.name} must be one of {spec.choices_text()}'))
         updated = self.params.with_values(**{p.name: p.value for p in parameters
                                              if p.name in BY_NAME})
         if updated.hook_load_min_n > updated.hook_load_max_n:
@@ -586,6 +586,9 @@ class TwinNode(Node):
                                        reason='hook_load_min_n must not exceed hook_load_max_n')
         if updated.health_rate_hz != self.params.health_rate_hz:
             self.health_timer.timer_period_ns = int(round(1e9 / updated.health_rate_hz))
+        if (updated.top_drive_controller
+                and updated.top_drive_controller != self.params.top_drive_controller):
+            self.engine.set_top_drive_controller(updated.top_drive_controller)
         self.params = updated
         self.engine.limits = command_limits(updated)
         self.engine.kpi_window_s = float(updated.kpi_window_s)

@@ -277,6 +277,11 @@ class TwinEngine:
         return 'dynamic' if hasattr(rig.top_drive_of(self.simulator), 'loop') else 'kinematic'
 
     @property
+    def top_drive_controller(self) -> str:
+        """Return the dynamic drive's controller (kept while the drive is kinematic)."""
+        return self._controller
+
+    @property
     def axial_mode(self) -> str:
         """Return the mean model's axial input now (hook_load, block_velocity, autodriller)."""
         drawworks = rig.drawworks_of(self.simulator)
