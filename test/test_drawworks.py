@@ -188,3 +188,31 @@ def test_a_restart_from_a_safe_state_puts_the_block_where_the_line_holds_it():
     bound = (drawworks.line_damping * speed + drawworks.line_stiffness * speed * simulator.dt
              + 0.01 * held)
     assert abs(simulator.observe().hook_load_n - held) <= bound
+
+
+def test_the_autodriller_feeds_line_and_never_hoists():
+    """
+    Switched on while the string moves up, the autodriller brakes the block to a stop.
+
+    Its bumpless start is the top's speed (here upwards); with a WOB set-point of 0 off bottom
+    the error is 0, and a PI alone would hoist the string at that speed forever (seen in the
+    envelope sweep: 27 m up in 50 s). An autodriller feeds line: v_b >= 0.
+    """
+    config = load_config(overrides=QUIET + ['drawworks.block_acceleration_max_m_per_s2=0.5'])
+    simulator = Simulator(config)
+    attach_drives(simulator)
+    set_axial_mode(simulator, 'block_velocity')
+    drawworks = drawworks_of(simulator)
+    drawworks.set_block_velocity(-0.5)
+    for _ in range(int(round(3.0 / simulator.dt))):     # the string rises at 0.5 m/s
+        simulator.step()
+    assert simulator.observe().hook_velocity_m_per_s[0] < -0.4
+    drawworks.set_weight_on_bit_setpoint(0.0)
+    set_axial_mode(simulator, 'autodriller')
+    velocities = []
+    for _ in range(int(round(3.0 / simulator.dt))):
+        simulator.step()
+        velocities.append(drawworks.block_velocity_m_per_s)
+    assert velocities[0] < -0.4                         # bumpless: from the string's speed
+    assert np.all(np.diff(velocities) >= -1e-12)        # braking, never hoisting harder
+    assert velocities[-1] == 0.0

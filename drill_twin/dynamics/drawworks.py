@@ -18,10 +18,12 @@ taken from the last converged step), so H is solved implicitly with the string's
 block, as the top drive's torque is (drill_twin/dynamics/top_drive.py).
 
 The autodriller regulates v_b = v_I + K_p e, v_I' = K_i e, e = WOB_sp - WOB (WOB > 0 in
-compression, measured at the last step). In both modes v_b moves towards its target by at most
-a_max dt a step (``block_acceleration_max_m_per_s2``): a velocity step would ring the string's
-axial modes (a 0.25 m/s stop swings the bit by 0.45 m/s), which no drum does. The autodriller's
-integral is held back with the block (anti-windup).
+compression, measured at the last step), never below 0: an autodriller feeds line and does not
+hoist (started on a string that rebounds upwards, it brakes the block to a stop instead of
+following the string up at the bumpless start's speed). In both modes v_b moves towards its
+target by at most a_max dt a step (``block_acceleration_max_m_per_s2``): a velocity step
+would ring the string's axial modes (a 0.25 m/s stop swings the bit by 0.45 m/s), which no
+drum does. The autodriller's integral is held back with the block (anti-windup).
 
 After a member is restarted from a safe state, :meth:`Drawworks.reseat` pays out or takes in
 line (s, zero until then) so that it pulls that state's hook load; the block does not jump.
@@ -170,7 +172,8 @@ class Drawworks:
         if self.mode == 'autodriller':
             error = self.weight_on_bit_setpoint_n - self.measured_weight_on_bit_n()
             self.autodriller_integral_m_per_s += self.ki * dt * error
-            target = self.autodriller_integral_m_per_s + self.kp * error
+            # An autodriller feeds line (v_b >= 0): it never hoists, whatever the string does.
+            target = max(self.autodriller_integral_m_per_s + self.kp * error, 0.0)
         else:
             target = self.block_velocity_command_m_per_s
         reach = self.acceleration_max_m_per_s2 * dt
