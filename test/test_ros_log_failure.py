@@ -48,7 +48,7 @@ log_dir, policy, split_s = sys.argv[1], sys.argv[2], float(sys.argv[3])
 rclpy.init()
 node = create_twin_node(TwinParameters(
     fast=True, log_dir=log_dir, on_log_error=policy, log_split_s=split_s,
-    ensemble_members=0, duration_s=5.0))
+    ensemble_members=0, duration_s=5.0, log_state_rate_hz=100.0))   # every tick: fills the disk
 probe = rclpy.create_node('probe')
 heard = {'diagnostics': [], 'rosout': [], 'last_bit_stamp_ns': -1}
 deep = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE)
