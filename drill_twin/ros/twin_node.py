@@ -683,6 +683,8 @@ def _run(ros_args: list[str], view: str | None = None, console: bool = False) ->
         print(f'drill-twin: {error} (on_log_error: exit)', file=sys.stderr)
         status = 1
     finally:
+        if interrupted:
+            _let_the_signal_handler_finish()
         if node is not None:
             if node.live_view:
                 node.live_view.close()                 # the viewer keeps running for the user
@@ -695,3 +697,17 @@ def _run(ros_args: list[str], view: str | None = None, console: bool = False) ->
             executor.shutdown()
         rclpy.try_shutdown()
     return status
+
+
+def _let_the_signal_handler_finish(timeout_s: float = 1.0) -> None:
+    """
+    Wait until rclpy's signal handler has shut the context down (at most ``timeout_s``).
+
+    On SIGINT or SIGTERM rclpy shuts the context down on its own thread while Python raises
+    KeyboardInterrupt here at once; shutting the context down again at the same time corrupted
+    the heap or raised "rcl_shutdown already called" (3 runs in 60 of a signal during start-up,
+    test_signal_while_starting).
+    """
+    deadline = time.monotonic() + timeout_s
+    while rclpy.ok() and time.monotonic() < deadline:
+        time.sleep(0.005)
