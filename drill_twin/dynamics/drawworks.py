@@ -72,18 +72,9 @@ class TopAxialMotion:
                 float(self.row @ state.q_rate[0, self.columns]))
 
     def predicted(self, hook_load_n: float = 0.0) -> tuple[float, float]:
-        """(u_top, u_top') after the step under ``hook_load_n`` (m, m/s)."""
-        sim, dt = self.simulator, self.dt
-        c = self.columns
-        state = sim.state
-        q, v, a = state.q[0, c], state.q_rate[0, c], state.q_acceleration[0, c]
-        d_pred = q + dt * v + (0.5 - NEWMARK_BETA) * dt * dt * a
-        v_pred = v + (1.0 - NEWMARK_GAMMA) * dt * a
-        load = (sim.last.modal[0, c] - self.damping @ v_pred - self.stiffness @ d_pred
-                - self.row * (hook_load_n - self.static_hook_load_n))
-        a_new = la.lu_solve(self._factor, load)
-        return (float(self.row @ (d_pred + NEWMARK_BETA * dt * dt * a_new)),
-                float(self.row @ (v_pred + NEWMARK_GAMMA * dt * a_new)))
+        """(u_top, u_top') of member 0 after the step under ``hook_load_n`` (m, m/s)."""
+        u, v = self._predicted(0, hook_load_n)
+        return float(u), float(v)
 
     def now_members(self) -> tuple[np.ndarray, np.ndarray]:
         """(u_top, u_top') of every member at the current state, (m,) each (m, m/s)."""
@@ -92,13 +83,31 @@ class TopAxialMotion:
 
     def predicted_members(self) -> tuple[np.ndarray, np.ndarray]:
         """(u_top, u_top') of every member after the step under a zero hook load, (m,) each."""
+        return self._predicted(slice(None), 0.0)
+
+    def hook_load_through_line(self, stiffness, damping, u0, v0, block_position_m,
+                               block_velocity_m_per_s, slack_m):
+        """
+        Return the hook load H a drill line pulls over the coming step (N, >= 0).
+
+        H = H_S + k (u_top(H) - x_b - s) + c (u_top'(H) - v_b) solved with u_top(H) and
+        u_top'(H) affine in H (u0, v0 at H = 0, the slopes of this class); scalars or (m,).
+        """
+        rest = (self.static_hook_load_n + stiffness * (u0 - block_position_m - slack_m)
+                + damping * (v0 - block_velocity_m_per_s))
+        slope = (1.0 - stiffness * self.displacement_slope_m_per_n
+                 - damping * self.velocity_slope_m_per_s_per_n)
+        return np.maximum(rest / slope, 0.0)
+
+    def _predicted(self, rows, hook_load_n):
+        """Newmark's end-of-step top motion of ``rows`` (0 or a slice) under one hook load."""
         sim, dt, c = self.simulator, self.dt, self.columns
         state = sim.state
-        q, v, a = state.q[:, c], state.q_rate[:, c], state.q_acceleration[:, c]
+        q, v, a = state.q[rows, c], state.q_rate[rows, c], state.q_acceleration[rows, c]
         d_pred = q + dt * v + (0.5 - NEWMARK_BETA) * dt * dt * a
         v_pred = v + (1.0 - NEWMARK_GAMMA) * dt * a
-        load = (sim.last.modal[:, c] - v_pred @ self.damping.T - d_pred @ self.stiffness.T
-                + self.row * self.static_hook_load_n)
+        load = (sim.last.modal[rows, c] - v_pred @ self.damping.T - d_pred @ self.stiffness.T
+                - self.row * (hook_load_n - self.static_hook_load_n))
         a_new = la.lu_solve(self._factor, load.T).T
         return ((d_pred + NEWMARK_BETA * dt * dt * a_new) @ self.row,
                 (v_pred + NEWMARK_GAMMA * dt * a_new) @ self.row)
@@ -183,13 +192,9 @@ class Drawworks:
             self.autodriller_integral_m_per_s += self.block_velocity_m_per_s - target
         self.block_position_m += dt * self.block_velocity_m_per_s
         u0, v0 = self.top.predicted(0.0)
-        k, c = self.line_stiffness, self.line_damping
-        rest = (self.top.static_hook_load_n
-                + k * (u0 - self.block_position_m - self.line_slack_m)
-                + c * (v0 - self.block_velocity_m_per_s))
-        slope = (1.0 - k * self.top.displacement_slope_m_per_n
-                 - c * self.top.velocity_slope_m_per_s_per_n)
-        self.hook_load_n = max(rest / slope, 0.0)
+        self.hook_load_n = float(self.top.hook_load_through_line(
+            self.line_stiffness, self.line_damping, u0, v0, self.block_position_m,
+            self.block_velocity_m_per_s, self.line_slack_m))
         self.simulator.set_hook_load(self.hook_load_n)
         return self.hook_load_n
 
@@ -230,17 +235,14 @@ class FollowedBlock:
 
     def follow(self, block_position_m: float, block_velocity_m_per_s: float) -> np.ndarray:
         """Set every member's hook load for the coming step; the block ends it at x_b (N, (m,))."""
-        top = self.top
-        k, c = self.line_stiffness, self.line_damping
         if self.slack_m is None:
             self.block_position_m = block_position_m
             self.reseat(np.arange(self.simulator.members))
         self.block_position_m = block_position_m
-        u0, v0 = top.predicted_members()
-        rest = (top.static_hook_load_n + k * (u0 - block_position_m - self.slack_m)
-                + c * (v0 - block_velocity_m_per_s))
-        slope = 1.0 - k * top.displacement_slope_m_per_n - c * top.velocity_slope_m_per_s_per_n
-        loads = np.maximum(rest / slope, 0.0)
+        u0, v0 = self.top.predicted_members()
+        loads = self.top.hook_load_through_line(self.line_stiffness, self.line_damping, u0, v0,
+                                                block_position_m, block_velocity_m_per_s,
+                                                self.slack_m)
         self.simulator.set_hook_load(loads)
         return loads
 
