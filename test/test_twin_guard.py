@@ -275,3 +275,20 @@ def test_stick_slip_severity_is_undefined_without_forward_rotation():
     assert math.isnan(kpi.stick_slip_severity(np.array([-1.0, -3.0])))
     assert math.isnan(kpi.stick_slip_severity(np.array([0.0, 0.0])))
     assert kpi.stick_slip_severity(np.array([1.0, 3.0])) == pytest.approx(0.5)
+
+
+def test_a_members_torque_bound_is_that_of_its_own_random_law(config):
+    """
+    Each member's TOB bound scales with its germ's torsional entry.
+
+    With G = diag(1, g22) (no coupling) the random torque is the mean law's scaled by g22 where
+    the bit cuts (the blend weight is 1 - 1e-3 at the smallest ROP of the envelope's points):
+    the bound is g22 times the mean law's, and never below it.
+    """
+    system = Simulator(config).system
+    law = Simulator(config).law
+    germs = np.array([np.eye(2), np.diag([1.0, 1.3]), np.diag([1.0, 0.7])])
+    mean = StateGuard(system, law).torque_on_bit_max_nm
+    bounds = StateGuard(system, law, germs=germs).torque_on_bit_max_nm
+    assert np.ndim(mean) == 0 and bounds.shape == (3,)
+    np.testing.assert_allclose(bounds, [mean, 1.3 * mean, mean], rtol=2e-3)
