@@ -4,14 +4,16 @@
                                         [--time-step 0.005] [--seed 0] [--log-dir DIR]
 
 Starts ``drill-twin twin --fast`` (a separate process, as a rig would see it) with the given
-ensemble and drives it by topic, on the twin's own clock (/clock), through a command script
-that covers the envelope of issue 10: top-drive speed 0 ... 30 rad/s (stopped on bottom and
-restarted), hook load from above the string's weight (bit lifted off bottom) down to a weight
-on bit of 300 kN, with step changes of either at arbitrary instants (a seeded
-``numpy.random.Generator`` picks them). It listens to ``/diagnostics`` and prints, at the end,
-the twin's own counters from its last health report (resets of members and of the mean model,
-retried steps, failed steps, rejected commands), the number of ERROR/WARN health reports, the
-simulated and wall time. Not part of the test suite.
+ensemble and drives it by topic, on the twin's own clock (/clock), as a driller would
+(:class:`Driller`, every draw from a seeded ``numpy.random.Generator``): top-drive speed
+0 ... 30 rad/s (stopped on bottom and restarted), WOB 0 ... 300 kN through the hook load or the
+autodriller's set-point, step changes at random instants, and pick-ups with the drawworks,
+rotation off bottom, a run back down and a gentle tag. It waits for the axial mode's echo
+before the set-points that depend on it, prints every command, listens to ``/diagnostics``
+and prints, at the end, the resets by reason and the twin's own counters from its last health
+report (resets of members and of the mean model, retried steps, failed steps, rejected
+commands), the number of ERROR/WARN health reports, the simulated and wall time.
+``--offline`` drives the twin's engine in this process instead. Not part of the test suite.
 """
 from __future__ import annotations
 
