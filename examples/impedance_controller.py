@@ -39,6 +39,7 @@ import math
 import time
 
 import rclpy
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
@@ -75,12 +76,14 @@ class ImpedanceController(Node):
     :param filter_time_constant_s: a first-order low-pass on the torque reading (s; 0: none).
     :param switch_drive: send the dynamic mode and the stiff controller at start.
     :param start_at_s: the twin time from which it commands (s; before, it only listens).
+    :param start_after_first_reading: count ``start_at_s`` from the first reading heard (a
+        twin in real time stamps with the system clock) instead of from twin time 0.
     """
 
     def __init__(self, reference_rad_per_s: float, impedance_nm_s_per_rad: float,
                  mean_time_constant_s: float = 10.0, sample_period_s: float = 0.01,
                  filter_time_constant_s: float = 0.05, switch_drive: bool = True,
-                 start_at_s: float = 0.0, **kwargs):
+                 start_at_s: float = 0.0, start_after_first_reading: bool = False, **kwargs):
         super().__init__('impedance_controller', **kwargs)
         self.reference = float(reference_rad_per_s)
         self.impedance = float(impedance_nm_s_per_rad)
@@ -108,6 +111,7 @@ class ImpedanceController(Node):
                                  reliable)
         self._switch_pending = switch_drive
         self.start_at_ns = int(round(start_at_s * 1e9))
+        self._start_pending = start_after_first_reading
 
     def publishers_matched(self) -> bool:
         """Return True when the twin subscribes to every command this node sends."""
@@ -116,6 +120,9 @@ class ImpedanceController(Node):
 
     def _on_top_state(self, message: JointState) -> None:
         self.reading_stamp_ns = message.header.stamp.sec * 10 ** 9 + message.header.stamp.nanosec
+        if self._start_pending:
+            self.start_at_ns += self.reading_stamp_ns
+            self._start_pending = False
 
     def _on_speed(self, message: Float64) -> None:
         self.speed_rad_per_s = message.data
@@ -178,18 +185,22 @@ def main() -> None:
     parser.add_argument('--sample-period', type=float, default=0.01)
     parser.add_argument('--torque-filter', type=float, default=0.05,
                         help='time constant of the low-pass on the torque reading, s')
+    parser.add_argument('--start-at', type=float, default=0.0,
+                        help='twin time from the first reading heard after which it commands, '
+                             's (before, it only listens)')
     parser.add_argument('--duration', type=float, default=0.0,
                         help='wall seconds to run (0: until Ctrl-C)')
     args = parser.parse_args()
     rclpy.init()
     node = ImpedanceController(args.reference, args.impedance or pipe_impedance_nm_s_per_rad(),
                                args.mean_time_constant, args.sample_period,
-                               args.torque_filter)
+                               args.torque_filter, start_at_s=args.start_at,
+                               start_after_first_reading=True)
     end = time.monotonic() + args.duration if args.duration > 0 else math.inf
     try:
         while rclpy.ok() and time.monotonic() < end:
             rclpy.spin_once(node, timeout_sec=0.1)
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
         print(node.latency_summary())

@@ -9,8 +9,8 @@ from drill_twin.cli import startup_signals
 from drill_twin.cli.common import UsageError, positive_seconds, preflight_or_refuse
 from drill_twin.config import load_config
 from drill_twin.config.paths import config_directory
-from drill_twin.ros.parameters import (ParameterError, check_parameter, model_overrides,
-                                       validate_ros_arguments)
+from drill_twin.ros.parameters import (PARAMETERS, ParameterError, check_parameter,
+                                       model_overrides, validate_ros_arguments)
 
 
 def add_parser(subparsers) -> None:
@@ -37,9 +37,13 @@ def add_parser(subparsers) -> None:
                         help="with --view: serve rerun's web viewer instead of a window")
     parser.add_argument('--fast', action='store_true',
                         help='run as fast as possible and publish /clock')
-    parser.add_argument('--ensemble', type=int, metavar='N', help='ensemble members (default 16)')
-    parser.add_argument('--delta', type=float, help='dispersion of the ensemble (default 0.01)')
-    parser.add_argument('--seed', type=int, help='seed of the ensemble (default 0)')
+    default = {spec.name: spec.default for spec in PARAMETERS}
+    parser.add_argument('--ensemble', type=int, metavar='N',
+                        help=f'ensemble members (default {default["ensemble_members"]})')
+    parser.add_argument('--delta', type=float, help='dispersion of the ensemble '
+                        f'(default {default["ensemble_dispersion"]})')
+    parser.add_argument('--seed', type=int,
+                        help=f'seed of the ensemble (default {default["seed"]})')
     parser.add_argument('--ensemble-in-process', action='store_true',
                         help='integrate the ensemble in the node\'s process instead of a '
                              'worker process (one-core machines)')
