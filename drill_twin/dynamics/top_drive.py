@@ -234,6 +234,30 @@ class DynamicTopDrive:
         return omega
 
 
+class FollowedTopSpeed:
+    """
+    The top speed of another model, imposed on this one step by step.
+
+    The online ensemble follows the rig's top drive this way: its members turn at the surface
+    speed the mean model's drive gave (kinematic or dynamic, under any controller), as a
+    twin's members would turn at the rig's measured surface speed. ``follow(speed)`` before
+    each step; ``advance`` returns that speed whatever the command, also when a failed step is
+    taken again.
+    """
+
+    def __init__(self, speed_rad_per_s: float):
+        self.speed_rad_per_s = float(speed_rad_per_s)
+        self.target_rad_per_s = float(speed_rad_per_s)
+
+    def follow(self, speed_rad_per_s: float) -> None:
+        """Set the top speed at the end of the coming step (rad/s)."""
+        self.target_rad_per_s = float(speed_rad_per_s)
+
+    def advance(self, command_rad_per_s: float, dt: float) -> float:
+        self.speed_rad_per_s = self.target_rad_per_s
+        return self.speed_rad_per_s
+
+
 def attach_top_drive(simulator) -> None:
     """
     Replace the simulator's kinematic top drive by the dynamic one if configured.

@@ -209,9 +209,9 @@ class TwinEngine:
         return self.envelope.hook_load_reason(newton)
 
     # The rig's drives (issue 13, docs/DRIVES.md): the mean model's simulator takes them; the
-    # ensemble keeps its configured top drive under the speed set-point and, axially, takes the
-    # hook load the mean model applies or, with the drawworks, hangs every member's line from
-    # the mean model's block (``_exchange_with_ensemble``).
+    # ensemble turns at the mean model's top speed and, axially, takes the hook load the mean
+    # model applies or, with the drawworks, hangs every member's line from the mean model's
+    # block (``_exchange_with_ensemble``).
     def set_top_drive_mode(self, mode: str) -> None:
         """Switch the top drive, 'kinematic' or 'dynamic' (bumpless); raises CommandRejected."""
         self._check_choice('top-drive mode', mode, ('kinematic', 'dynamic'))
@@ -340,15 +340,22 @@ class TwinEngine:
         """
         Step the mean model ``steps`` times and return the snapshot of the last step.
 
-        The ensemble is stepped likewise, one tick behind.
+        The ensemble is stepped likewise, one tick behind, under the surface motion the mean
+        model's drives gave in these steps.
         """
         start = time.perf_counter()
-        self._exchange_with_ensemble(steps)
         iterations = 0
-        for _ in range(steps):
+        drawworks = rig.drawworks_of(self.simulator)
+        top_speeds = np.empty(steps)
+        block = None if drawworks is None else (np.empty(steps), np.empty(steps))
+        for step in range(steps):
             before = self.simulator.last
             result = self._mean.step()
             self._events.extend(self._mean.take_events())
+            top_speeds[step] = self.simulator.state.top_speed_rad_per_s
+            if block is not None:
+                block[0][step] = drawworks.block_position_m
+                block[1][step] = drawworks.block_velocity_m_per_s
             if result is None:
                 continue
             iterations += result.iterations
@@ -358,26 +365,24 @@ class TwinEngine:
             rop = self.simulator.hole_rop_m_per_s(now.rop_m_per_s)[0]   # the hole's rate
             self._window.append((self.time_s, now.bit_speed_rad_per_s[0], rop,
                                  now.weight_on_bit_n[0], now.torque_on_bit_nm[0]))
+        self._exchange_with_ensemble(steps, top_speeds, block)
         self._last = self.simulator.observe()
         self._wall_per_tick.append(time.perf_counter() - start)
         self._iterations.append(iterations / max(steps, 1))
         return self.snapshot()
 
-    def _exchange_with_ensemble(self, steps: int) -> None:
+    def _exchange_with_ensemble(self, steps: int, top_speeds, block) -> None:
         """
         Collect the ensemble's previous tick and hand it this one.
 
-        This tick runs under the commands in force for the mean model's coming steps.
+        This tick's work: the mean model's top speeds and block (positions, velocities) at the
+        end of each of its steps (None under the hook load command).
         """
         if self.ensemble_runner is None:
             return
         try:
             latest = self.ensemble_runner.collect()
-            drawworks = rig.drawworks_of(self.simulator)
-            block = (None if drawworks is None else
-                     (drawworks.block_position_m, drawworks.block_velocity_m_per_s))
-            self.ensemble_runner.start(steps, self.top_drive_speed_command,
-                                       self.hook_load_command, block)
+            self.ensemble_runner.start(steps, top_speeds, self.hook_load_command, block)
         except (EnsembleFailed, TwinStalled) as error:
             self.ensemble_runner.close()
             self.ensemble_runner, self._ensemble_latest = None, None

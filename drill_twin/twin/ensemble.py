@@ -4,12 +4,16 @@ The twin's online ensemble.
 N realizations of the random bit-rock law, stepped as a batch beside the mean model, in this
 process or in a worker process of its own.
 
-The engine hands the ensemble each tick's work with :meth:`start` (steps and the commands in
-force) and picks the result up with :meth:`collect` at the start of the next tick, so that a
-worker process integrates the ensemble while the node steps the mean model and publishes:
-the two cores of a small machine share the load, and the ensemble's statistics lag the mean
-model by one tick (each result carries its own step and time). Both kinds compute the same
-numbers: the worker receives the reduced system built here.
+The engine hands the ensemble each tick's work with :meth:`start` once the mean model has
+taken the tick's steps, with what the rig applied at the surface in each of them (the top
+speed, the block's position and velocity or the hook load), and picks the result up with
+:meth:`collect` at the end of the next tick, so that a worker process integrates the ensemble
+while the node steps the mean model and publishes: the two cores of a small machine share the
+load, and the ensemble's statistics lag the mean model by one tick (each result carries its
+own step and time). The members follow the rig's drives (they turn at the mean model's top
+speed and hang from its block) rather than simulating drives of their own: a twin's members
+see the surface motion the rig measures. Both kinds compute the same numbers: the worker
+receives the reduced system built here.
 
 Member j (1..N) carries the germ of realization j - 1 of the stream ``seed``
 (:func:`~drill_twin.uncertainty.germ.germs_for_realizations`).
@@ -33,6 +37,7 @@ from drill_twin.config.schema import DrillStringConfig
 from drill_twin.dynamics import rig
 from drill_twin.dynamics.drawworks import FollowedBlock
 from drill_twin.dynamics.simulator import Simulator
+from drill_twin.dynamics.top_drive import FollowedTopSpeed
 from drill_twin.twin.stepping import GuardedSimulator, TwinEvent
 from drill_twin.uncertainty.executors import SINGLE_THREADED_BLAS
 from drill_twin.uncertainty.germ import germs_for_realizations, validate_dispersion
@@ -111,6 +116,8 @@ class LocalEnsemble:
         if rig.drawworks_of(simulator) is not None:    # the lines follow the rig's block
             rig.set_axial_mode(simulator, 'hook_load')
         self.block = FollowedBlock(simulator, config.drawworks)
+        self.top = FollowedTopSpeed(simulator.top_drive.speed_rad_per_s)
+        simulator.top_drive = self.top                  # the members turn with the rig's top
         simulator.reset_listeners.append(self._reseat)
         self.step_index = 0
         self._request = None
@@ -120,16 +127,16 @@ class LocalEnsemble:
     def simulator(self) -> Simulator:
         return self.guarded.simulator
 
-    def start(self, steps: int, top_drive_speed_rad_per_s: float, hook_load_n: float,
-              block=None) -> None:
+    def start(self, steps: int, top_speeds_rad_per_s, hook_load_n: float, block=None) -> None:
         """
-        Take a tick's work: ``steps`` model steps under these commands.
+        Take a tick's work: ``steps`` model steps under what the rig applied in them.
 
-        block: None (every member under ``hook_load_n``), or the rig's block as (position at
-        the tick's start m, velocity m/s): each member's line then hangs from it
-        (:class:`~drill_twin.dynamics.drawworks.FollowedBlock`).
+        top_speeds_rad_per_s: the top speed at the end of each step, shape (steps,);
+        block: None (every member under ``hook_load_n``, N), or the rig's block as (positions
+        m, velocities m/s) at the end of each step, shapes (steps,): each member's line then
+        hangs from it (:class:`~drill_twin.dynamics.drawworks.FollowedBlock`).
         """
-        self._request = (steps, top_drive_speed_rad_per_s, hook_load_n, block)
+        self._request = (steps, top_speeds_rad_per_s, hook_load_n, block)
 
     def _reseat(self, members) -> None:
         if self.block.slack_m is not None:
@@ -140,18 +147,17 @@ class LocalEnsemble:
         if self._request is None:
             return self.latest
         start = time.perf_counter()
-        steps, speed, hook, block = self._request
+        steps, speeds, hook, block = self._request
         self._request = None
-        self.simulator.set_top_drive_speed(speed)
         if block is None:
             self.block.release()
             self.simulator.set_hook_load(hook)
         iterations = 0
         for step in range(steps):
+            self.top.follow(speeds[step])
             if block is not None:
-                position, velocity = block
-                self.block.follow(position + (step + 1) * self.simulator.dt * velocity,
-                                  velocity)
+                positions, velocities = block
+                self.block.follow(positions[step], velocities[step])
             result = self.guarded.step()
             if result is not None:
                 self.step_index += 1
@@ -211,10 +217,9 @@ class EnsembleProcess:
             self.close()
             raise
 
-    def start(self, steps: int, top_drive_speed_rad_per_s: float, hook_load_n: float,
-              block=None) -> None:
+    def start(self, steps: int, top_speeds_rad_per_s, hook_load_n: float, block=None) -> None:
         try:
-            self._connection.send((steps, top_drive_speed_rad_per_s, hook_load_n, block))
+            self._connection.send((steps, top_speeds_rad_per_s, hook_load_n, block))
         except OSError as error:
             raise EnsembleFailed(self._ended(error)) from None
         self._pending = True
