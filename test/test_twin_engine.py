@@ -196,3 +196,18 @@ def test_ensemble_columns_are_the_bit_state_fields():
     from drill_twin.twin.ensemble import BIT_FIELDS
 
     assert tuple(f.name for f in dataclasses.fields(BitState)) == BIT_FIELDS
+
+
+def test_the_torque_limit_command_is_bounded_by_its_node_parameter(config):
+    from drill_twin.ros.build import command_limits
+    from drill_twin.ros.parameters import TwinParameters
+
+    limits = command_limits(TwinParameters.from_values({'top_drive_torque_limit_max_nm': 80e3}))
+    assert limits.top_drive_torque_limit_max_nm == 80e3
+    engine = TwinEngine(config, EnsembleSettings(members=0), limits)
+    engine.set_top_drive_torque_limit(60e3)
+    with pytest.raises(CommandRejected, match=re.escape('is outside [0, 80000] N m')):
+        engine.set_top_drive_torque_limit(90e3)
+    with pytest.raises(CommandRejected, match='must be > 0 N m'):
+        engine.set_top_drive_torque_limit(0.0)
+    assert engine._torque_limit_nm == 60e3

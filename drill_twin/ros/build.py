@@ -22,10 +22,11 @@ from drill_twin.twin.engine import CommandLimits, EnsembleSettings, TwinEngine
 
 
 def command_limits(params: TwinParameters) -> CommandLimits:
-    """Return the commands the twin accepts (top-drive speed rad/s, hook load N)."""
+    """Return the commands the twin accepts (top-drive speed rad/s, hook load N, torque N m)."""
     return CommandLimits(top_drive_speed_max_rad_per_s=params.top_drive_speed_max_rad_per_s,
                          hook_load_min_n=params.hook_load_min_n,
-                         hook_load_max_n=params.hook_load_max_n)
+                         hook_load_max_n=params.hook_load_max_n,
+                         top_drive_torque_limit_max_nm=params.top_drive_torque_limit_max_nm)
 
 
 def build_engine(params: TwinParameters) -> TwinEngine:

@@ -83,6 +83,8 @@ PARAMETERS = (
                   low=0.0, high=1e8),
     ParameterSpec('hook_load_max_n', 5.0e6, 'largest accepted hook-load command (N)', safe=True,
                   low=0.0, high=1e8),
+    ParameterSpec('top_drive_torque_limit_max_nm', 500.0e3, 'largest accepted motor torque '
+                  'limit command of the dynamic top drive (N m)', safe=True, low=0.0, high=1e7),
 )
 BY_NAME = {p.name: p for p in PARAMETERS}
 
