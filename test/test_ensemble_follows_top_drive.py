@@ -37,8 +37,8 @@ def run(request):
                 engine.set_top_drive_controller('impedance')
                 engine.set_top_drive_mode('dynamic')
             snapshot = engine.advance(STEPS_PER_TICK)
-            mean[round(engine.time_s, 6)] = (snapshot.bit.speed_rad_per_s,
-                                            engine.simulator.state.top_speed_rad_per_s)
+            top = engine.simulator.state.top_speed_rad_per_s
+            mean[round(engine.time_s, 6)] = (snapshot.bit.speed_rad_per_s, top)
             latest = engine.ensemble_runner.collect()     # this tick's, at once
             members[round(latest.time_s, 6)] = latest.bit[:, 4].copy()
         yield engine, mean, members
