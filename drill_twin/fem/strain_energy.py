@@ -161,3 +161,43 @@ def tangent_stiffness(g: np.ndarray, s: SectionStiffness) -> np.ndarray:
         probe[..., k] += 1j * _COMPLEX_STEP
         columns.append(stress_resultants(probe, s).imag / _COMPLEX_STEP)
     return np.stack(columns, axis=-1)
+
+
+def printed_eq15_strains(g: np.ndarray, theta_x) -> np.ndarray:
+    """
+    The strains g~ for which W(g~) is the energy of Eq. 15 as printed, shape (..., 8).
+
+    Eq. 15 as printed, u_x = u - y theta_z + z theta_y, is the kinematics used here with the
+    tilts turned by the twist angle theta_x (rad; absolute or elastic, as the reading says):
+    theta~_y = theta_y cos - theta_z sin, theta~_z = theta_z cos + theta_y sin, so that
+    -theta~_z y' + theta~_y z' = -theta_z y + theta_y z for the twisted coordinates (y', z').
+    Their derivatives follow: kappa~_y = kappa_y cos - kappa_z sin - tau theta~_z,
+    kappa~_z = kappa_z cos + kappa_y sin + tau theta~_y; e, a, b and tau are unchanged.
+    (docs/LATERAL.md, section 4; test/test_strain_energy.py checks it against the 3D
+    derivation of the printed displacement field.)
+    """
+    g = np.asarray(g)
+    c, s = np.cos(theta_x), np.sin(theta_x)
+    out = np.array(g, dtype=np.result_type(g, float), copy=True)
+    ty, tz = g[..., THETA_Y], g[..., THETA_Z]
+    ky, kz, tau = g[..., KAPPA_Y], g[..., KAPPA_Z], g[..., TAU]
+    out[..., THETA_Y] = ty * c - tz * s
+    out[..., THETA_Z] = tz * c + ty * s
+    out[..., KAPPA_Y] = ky * c - kz * s - tau * out[..., THETA_Z]
+    out[..., KAPPA_Z] = kz * c + ky * s + tau * out[..., THETA_Y]
+    return out
+
+
+def printed_eq15_jacobian(theta_x: float) -> np.ndarray:
+    """
+    dg~/dg of :func:`printed_eq15_strains` where the section is neither tilted nor twisted
+    at the rate (theta_y = theta_z = tau = 0; the prestress), shape (8, 8).
+
+    The tangent of the printed energy at a frozen twist angle there is J^T H_S J.
+    """
+    c, s = np.cos(theta_x), np.sin(theta_x)
+    jacobian = np.eye(N_STRAINS)
+    for first, second in ((KAPPA_Y, KAPPA_Z), (THETA_Y, THETA_Z)):
+        jacobian[first, first], jacobian[first, second] = c, -s
+        jacobian[second, first], jacobian[second, second] = s, c
+    return jacobian
