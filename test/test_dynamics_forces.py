@@ -57,6 +57,50 @@ def test_finite_strain_force_is_minus_the_energy_gradient(system):
         assert -force @ direction == pytest.approx(derivative, rel=1e-8)
 
 
+def _printed_strain_energy(system, u, top_angle):
+    """Return the remainder of Eq. 15 as printed beyond [K] + [K_g], theta_x at the points."""
+    g = (system.strain_operator @ u).reshape(se.N_STRAINS, system.n_gauss).T
+    theta_x = system.theta_x_gauss @ u[system.blocks['torsional'].rows] + top_angle
+    g_s = system.prestress_strain
+    turned = se.printed_eq15_strains(g_s + g, theta_x)
+    w = (se.energy_density(turned, system.section) - se.energy_density(g_s, system.section)
+         - np.einsum('pk,pk->p', system.prestress_stress, g)
+         - 0.5 * np.einsum('pk,pkl,pl->p', g, system.prestress_tangent, g))
+    return np.sum(system.gauss_weight_m * w)
+
+
+@pytest.mark.parametrize('reading, top_angle', [('printed_elastic', 0.0),
+                                                ('printed_absolute', 0.0),
+                                                ('printed_absolute', 2.7)])
+@pytest.mark.parametrize('members', [1, 20])            # member by member, and vectorised
+def test_printed_eq15_force_is_minus_its_energy_gradient(system, reading, top_angle, members):
+    """
+    f_se of Eq. 15 as printed, on the strains and on the twist DOFs, against its energy.
+
+    The energy is W(g~) of fem.strain_energy.printed_eq15_strains (itself checked against the
+    sympy derivation of the printed field), differentiated by complex step; the twist is large
+    (random modal amplitudes of 20 give radians) so that every angle term matters.
+    """
+    import dataclasses
+
+    from drill_twin.dynamics.finite_strain import READINGS, StrainOperators
+
+    operators = dataclasses.replace(StrainOperators.of(system), reading=READINGS.index(reading),
+                                    top_angle=np.zeros(1))
+    rng = np.random.default_rng(11)
+    u = np.stack([_random_displacement(system, rng, 20.0) for _ in range(members)])
+    force = finite_strain_force(system, u, operators, top_angle_rad=top_angle)
+    angle = 0.0 if reading == 'printed_elastic' else top_angle
+    invariant = finite_strain_force(system, u)
+    assert np.abs(force - invariant).max() > 0.1 * np.abs(invariant).max()   # it differs
+    for member in (0, members - 1):
+        for _ in range(3):
+            direction = rng.normal(size=u.shape[1])
+            derivative = _printed_strain_energy(system, u[member] + 1j * STEP * direction,
+                                                angle).imag / STEP
+            assert -force[member] @ direction == pytest.approx(derivative, rel=1e-8)
+
+
 def test_finite_strain_force_is_of_second_order(system):
     rng = np.random.default_rng(4)
     u = _random_displacement(system, rng, 1.0)

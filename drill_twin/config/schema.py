@@ -533,6 +533,7 @@ class Excitation:
 
 
 KineticCouplingSign = Literal['derived', 'printed']
+StrainKinematics = Literal['invariant', 'printed_elastic', 'printed_absolute']
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -544,9 +545,14 @@ class LateralReadings:
 
     kinetic_coupling: 'derived' (T_c = -rho I_p theta_x' theta_y theta_z', the sign that
     follows from the rotation sequence) or 'printed' (Eq. 8-11 as printed: the opposite).
+    strain_kinematics: Eq. 15 'invariant' (the section twisted, then tilted: the energy does
+    not depend on the spin angle) or as printed (u_x = u - y theta_z + z theta_y), with
+    theta_x the elastic twist ('printed_elastic') or the absolute angle, top drive's included
+    ('printed_absolute'); docs/LATERAL.md, section 4.
     """
 
     kinetic_coupling: KineticCouplingSign = 'derived'
+    strain_kinematics: StrainKinematics = 'invariant'
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

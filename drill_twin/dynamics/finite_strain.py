@@ -7,7 +7,16 @@ force minus its value and tangent at the prestress, which [K] + [K_g] already ca
 The kernel runs Gauss point by Gauss point with the members of the batch as the inner
 (vector) axis, arrays shaped (n_dofs, m): the 8 strains of a point are gathered from its
 element's DOFs, its stress is computed and scattered straight back, so no array larger than
-(8, m) is made between the displacement and the force.
+(9, m) is made between the displacement and the force.
+
+Readings of Eq. 15 (``lateral_readings.strain_kinematics``, issue 12): ``invariant`` (the
+project's, docs/MODEL-CHOICES.md) or Eq. 15 as printed, whose energy is W(g~(g, theta_x))
+with the tilts turned by the twist angle theta_x at the point
+(:func:`~drill_twin.fem.strain_energy.printed_eq15_strains`): ``printed_elastic`` (theta_x the
+elastic twist, relative to the top drive's angle) or ``printed_absolute`` (the top drive's
+angle added: it grows like Omega t). The printed energy depends on theta_x itself, so its
+force has a term on the twist DOFs, N_theta_x^T dW/dtheta_x; [K] + [K_g] are the same for
+every reading (at theta_x = 0 they agree), f_se carries the rest.
 """
 from __future__ import annotations
 
@@ -17,6 +26,11 @@ import numpy as np
 
 from drill_twin.dynamics.compiled import VECTOR_BATCH, inline, kernel
 from drill_twin.fem import strain_energy as se
+
+READINGS = ('invariant', 'printed_elastic', 'printed_absolute')
+"""``lateral_readings.strain_kinematics``, in the order of the kernel's reading code."""
+WORK_ROWS = se.N_STRAINS + 1
+"""Rows of the strain and stress work arrays: the 8 strains, then the twist angle."""
 
 
 @dataclass(frozen=True)
@@ -28,7 +42,10 @@ class StrainOperators:
     Gauss point p, columns the field-wise DOFs; tangent_pointer (P + 1,) and tangent_row,
     tangent_column, tangent_value: the non-zeros of H_S = d2W/dg2(g_S) point by point;
     prestress_strain, prestress_stress: g_S and dW/dg(g_S), (P, 8); section: (P, 5) columns
-    EA, EI, ER4, kGA, kGI; weight_m: Gauss weights (m), (P,).
+    EA, EI, ER4, kGA, kGI; weight_m: Gauss weights (m), (P,); reading: the index of the Eq. 15
+    reading in READINGS; twist_pointer, twist_column, twist_value: theta_x at the Gauss points
+    in CSR (P rows, field-wise DOFs); top_angle: (1,) the top drive's angle (rad), set before
+    every evaluation (read by ``printed_absolute`` only).
     """
 
     strain_pointer: np.ndarray
@@ -42,6 +59,11 @@ class StrainOperators:
     prestress_stress: np.ndarray
     section: np.ndarray
     weight_m: np.ndarray
+    reading: int
+    twist_pointer: np.ndarray
+    twist_column: np.ndarray
+    twist_value: np.ndarray
+    top_angle: np.ndarray
 
     @classmethod
     def of(cls, system) -> 'StrainOperators':
@@ -54,6 +76,13 @@ class StrainOperators:
         point, row, column = np.nonzero(tangent)              # sorted by point
         pointer = np.searchsorted(point, np.arange(points + 1))
         s = system.section
+        torsion_rows = system.blocks['torsional'].rows
+        twist = np.zeros((points, system.permutation.size))
+        twist[:, torsion_rows] = system.theta_x_gauss
+        import scipy.sparse as sp
+        twist = sp.csr_matrix(twist)
+        twist.sort_indices()
+        reading = system.model.config.lateral_readings.strain_kinematics
         return cls(
             strain_pointer=strain.indptr.astype(np.int64),
             strain_column=strain.indices.astype(np.int64),
@@ -65,13 +94,23 @@ class StrainOperators:
             prestress_stress=np.ascontiguousarray(system.prestress_stress, dtype=float),
             section=np.ascontiguousarray(np.stack([s.EA, s.EI, s.ER4, s.kGA, s.kGI], axis=1),
                                          dtype=float),
-            weight_m=np.ascontiguousarray(system.gauss_weight_m, dtype=float))
+            weight_m=np.ascontiguousarray(system.gauss_weight_m, dtype=float),
+            reading=READINGS.index(reading),
+            twist_pointer=twist.indptr.astype(np.int64),
+            twist_column=twist.indices.astype(np.int64),
+            twist_value=twist.data.astype(float), top_angle=np.zeros(1))
+
+    def set_top_angle(self, angle_rad: float) -> None:
+        """Set the top drive's angle (rad) the next evaluation adds (printed_absolute)."""
+        self.top_angle[0] = angle_rad
 
     def arguments(self) -> tuple:
         """Return the kernel's operator arguments, in its order."""
         return (self.strain_pointer, self.strain_column, self.strain_value,
                 self.tangent_pointer, self.tangent_row, self.tangent_column, self.tangent_value,
-                self.prestress_strain, self.prestress_stress, self.section, self.weight_m)
+                self.prestress_strain, self.prestress_stress, self.section, self.weight_m,
+                self.reading, self.twist_pointer, self.twist_column, self.twist_value,
+                self.top_angle)
 
 
 @inline
@@ -114,23 +153,50 @@ def _stress(e, a, b, ky, kz, tau, ty, tz, ea, ei, er4, kga, kgi):
             -s1 * one_e + t1 * p + t2 * q + dq * tau)
 
 
+@inline
+def _printed_stress(e, a, b, ky, kz, tau, ty, tz, theta, ea, ei, er4, kga, kgi):
+    """
+    d/d(g, theta_x) of W(g~(g, theta_x)), Eq. 15 as printed: 9 values (the 8 of g, theta_x).
+
+    The chain rule through fem.strain_energy.printed_eq15_strains.
+    """
+    c, s = np.cos(theta), np.sin(theta)
+    tty = ty * c - tz * s
+    ttz = tz * c + ty * s
+    tky = ky * c - kz * s - tau * ttz
+    tkz = kz * c + ky * s + tau * tty
+    r = _stress(e, a, b, tky, tkz, tau, tty, ttz, ea, ei, er4, kga, kgi)
+    sky, skz, sty, stz = r[3], r[4], r[6], r[7]
+    return (r[0], r[1], r[2],
+            sky * c + skz * s,
+            -sky * s + skz * c,
+            r[5] - sky * ttz + skz * tty,
+            sty * c + stz * s - sky * tau * s + skz * tau * c,
+            -sty * s + stz * c - sky * tau * c - skz * tau * s,
+            -sty * ttz + stz * tty + sky * (-ky * s - kz * c - tau * tty)
+            + skz * (ky * c - kz * s - tau * ttz))
+
+
 @kernel
 def accumulate_finite_strain(displacement_t, strain_pointer, strain_column, strain_value,
                              tangent_pointer, tangent_row, tangent_column, tangent_value,
-                             prestress_strain, prestress_stress, section, weight_m,
+                             prestress_strain, prestress_stress, section, weight_m, reading,
+                             twist_pointer, twist_column, twist_value, top_angle,
                              strain, linear, stress, force_t):
     """
     force_t += f_se for displacements u (both (n_dofs, m), members last).
 
-    strain, linear, stress: work arrays (8, m) (g, H_S g and the weighted stress of a point).
-    Small batches run member by member (short vector loops cost more than they save).
+    strain, stress: work arrays (9, m) (g and theta_x, the weighted stress of a point and of
+    theta_x); linear: (8, m) (H_S g). Small batches run member by member (short vector loops
+    cost more than they save).
     """
     members = displacement_t.shape[1]
     if members < VECTOR_BATCH:
         for i in range(members):
             _accumulate_member(displacement_t, i, strain_pointer, strain_column, strain_value,
                                tangent_pointer, tangent_row, tangent_column, tangent_value,
-                               prestress_strain, prestress_stress, section, weight_m,
+                               prestress_strain, prestress_stress, section, weight_m, reading,
+                               twist_pointer, twist_column, twist_value, top_angle,
                                strain, linear, stress, force_t)
         return
     for p in range(weight_m.shape[0]):
@@ -148,25 +214,62 @@ def accumulate_finite_strain(displacement_t, strain_pointer, strain_column, stra
             for i in range(members):
                 linear[k, i] += value * strain[l, i]
         g, s, w = prestress_strain[p], section[p], weight_m[p]
-        for i in range(members):
-            sigma = _stress(g[0] + strain[0, i], g[1] + strain[1, i], g[2] + strain[2, i],
-                            g[3] + strain[3, i], g[4] + strain[4, i], g[5] + strain[5, i],
-                            g[6] + strain[6, i], g[7] + strain[7, i], s[0], s[1], s[2], s[3],
-                            s[4])
-            for k in range(8):
-                stress[k, i] = ((sigma[k] - prestress_stress[p, k]) - linear[k, i]) * w
+        if reading == 0:
+            for i in range(members):
+                sigma = _stress(g[0] + strain[0, i], g[1] + strain[1, i], g[2] + strain[2, i],
+                                g[3] + strain[3, i], g[4] + strain[4, i], g[5] + strain[5, i],
+                                g[6] + strain[6, i], g[7] + strain[7, i], s[0], s[1], s[2],
+                                s[3], s[4])
+                for k in range(8):
+                    stress[k, i] = ((sigma[k] - prestress_stress[p, k]) - linear[k, i]) * w
+        else:
+            _twist_angle(displacement_t, p, reading, twist_pointer, twist_column, twist_value,
+                         top_angle, strain)
+            for i in range(members):
+                _printed_member(strain, linear, stress, g, s, w, prestress_stress, p, i)
         for k in range(8):
             row = 8 * p + k
             for j in range(strain_pointer[row], strain_pointer[row + 1]):
                 column, value = strain_column[j], strain_value[j]
                 for i in range(members):
                     force_t[column, i] -= value * stress[k, i]
+        if reading != 0:
+            for j in range(twist_pointer[p], twist_pointer[p + 1]):
+                column, value = twist_column[j], twist_value[j]
+                for i in range(members):
+                    force_t[column, i] -= value * stress[8, i]
+
+
+@inline
+def _twist_angle(displacement_t, p, reading, twist_pointer, twist_column, twist_value,
+                 top_angle, strain):
+    """strain[8] = theta_x at Gauss point p for every member (+ the top angle if absolute)."""
+    base = top_angle[0] if reading == 2 else 0.0
+    for i in range(displacement_t.shape[1]):
+        strain[8, i] = base
+    for j in range(twist_pointer[p], twist_pointer[p + 1]):
+        column, value = twist_column[j], twist_value[j]
+        for i in range(displacement_t.shape[1]):
+            strain[8, i] += value * displacement_t[column, i]
+
+
+@inline
+def _printed_member(strain, linear, stress, g, s, w, prestress_stress, p, i):
+    """stress[:, i] of Eq. 15 as printed at Gauss point p (the 8 strains and theta_x)."""
+    sigma = _printed_stress(g[0] + strain[0, i], g[1] + strain[1, i], g[2] + strain[2, i],
+                            g[3] + strain[3, i], g[4] + strain[4, i], g[5] + strain[5, i],
+                            g[6] + strain[6, i], g[7] + strain[7, i], strain[8, i], s[0], s[1],
+                            s[2], s[3], s[4])
+    for k in range(8):
+        stress[k, i] = ((sigma[k] - prestress_stress[p, k]) - linear[k, i]) * w
+    stress[8, i] = sigma[8] * w
 
 
 @inline
 def _accumulate_member(displacement_t, i, strain_pointer, strain_column, strain_value,
                        tangent_pointer, tangent_row, tangent_column, tangent_value,
-                       prestress_strain, prestress_stress, section, weight_m, strain, linear,
+                       prestress_strain, prestress_stress, section, weight_m, reading,
+                       twist_pointer, twist_column, twist_value, top_angle, strain, linear,
                        stress, force_t):
     """Run the loop of :func:`accumulate_finite_strain` for member i alone (work column i)."""
     for p in range(weight_m.shape[0]):
@@ -180,19 +283,31 @@ def _accumulate_member(displacement_t, i, strain_pointer, strain_column, strain_
         for j in range(tangent_pointer[p], tangent_pointer[p + 1]):
             linear[tangent_row[j], i] += tangent_value[j] * strain[tangent_column[j], i]
         g, s, w = prestress_strain[p], section[p], weight_m[p]
-        sigma = _stress(g[0] + strain[0, i], g[1] + strain[1, i], g[2] + strain[2, i],
-                        g[3] + strain[3, i], g[4] + strain[4, i], g[5] + strain[5, i],
-                        g[6] + strain[6, i], g[7] + strain[7, i], s[0], s[1], s[2], s[3], s[4])
-        for k in range(8):
-            stress[k, i] = ((sigma[k] - prestress_stress[p, k]) - linear[k, i]) * w
+        if reading == 0:
+            sigma = _stress(g[0] + strain[0, i], g[1] + strain[1, i], g[2] + strain[2, i],
+                            g[3] + strain[3, i], g[4] + strain[4, i], g[5] + strain[5, i],
+                            g[6] + strain[6, i], g[7] + strain[7, i], s[0], s[1], s[2], s[3],
+                            s[4])
+            for k in range(8):
+                stress[k, i] = ((sigma[k] - prestress_stress[p, k]) - linear[k, i]) * w
+        else:
+            total = top_angle[0] if reading == 2 else 0.0
+            for j in range(twist_pointer[p], twist_pointer[p + 1]):
+                total += twist_value[j] * displacement_t[twist_column[j], i]
+            strain[8, i] = total
+            _printed_member(strain, linear, stress, g, s, w, prestress_stress, p, i)
         for k in range(8):
             row = 8 * p + k
             for j in range(strain_pointer[row], strain_pointer[row + 1]):
                 force_t[strain_column[j], i] -= strain_value[j] * stress[k, i]
+        if reading != 0:
+            for j in range(twist_pointer[p], twist_pointer[p + 1]):
+                force_t[twist_column[j], i] -= twist_value[j] * stress[8, i]
 
 
 def finite_strain_force(system, displacement: np.ndarray,
-                        operators: StrainOperators | None = None) -> np.ndarray:
+                        operators: StrainOperators | None = None,
+                        top_angle_rad: float = 0.0) -> np.ndarray:
     """
     f_se on the field-wise DOFs (right-hand side), shape (m, n_dofs).
 
@@ -200,9 +315,11 @@ def finite_strain_force(system, displacement: np.ndarray,
     ``system`` when not given) are :meth:`StrainOperators.of` the system.
     """
     operators = operators or StrainOperators.of(system)
+    operators.set_top_angle(top_angle_rad)
     members = displacement.shape[0]
     displacement_t = np.ascontiguousarray(displacement.T, dtype=float)
     force_t = np.zeros_like(displacement_t)
-    work = [np.empty((se.N_STRAINS, members)) for _ in range(3)]
+    work = [np.empty((WORK_ROWS, members)), np.empty((se.N_STRAINS, members)),
+            np.empty((WORK_ROWS, members))]
     accumulate_finite_strain(displacement_t, *operators.arguments(), *work, force_t)
     return np.ascontiguousarray(force_t.T)

@@ -17,7 +17,8 @@ from drill_twin.dynamics.bit_rock import BitRockLaw
 from drill_twin.dynamics.compiled import kernel
 from drill_twin.dynamics.contact import ContactForces, accumulate_contact
 from drill_twin.dynamics.excitation import ImbalanceForce, accumulate_imbalance
-from drill_twin.dynamics.finite_strain import StrainOperators, accumulate_finite_strain
+from drill_twin.dynamics.finite_strain import (WORK_ROWS, StrainOperators,
+                                               accumulate_finite_strain)
 from drill_twin.dynamics.kinetic_coupling import CouplingOperators, accumulate_kinetic_coupling
 from drill_twin.dynamics.reduced_system import ReducedSystem
 from drill_twin.fem import strain_energy as se
@@ -139,9 +140,9 @@ class Workspace:
         self.bending_y_acceleration_t = np.empty((2 * nodes, members))
         self.bending_z_rate_t = np.empty((2 * nodes, members))
         self.bending_z_acceleration_t = np.empty((2 * nodes, members))   # the imbalance's
-        self.strain = np.empty((se.N_STRAINS, members))
+        self.strain = np.empty((WORK_ROWS, members))
         self.linear = np.empty((se.N_STRAINS, members))
-        self.stress = np.empty((se.N_STRAINS, members))
+        self.stress = np.empty((WORK_ROWS, members))
         self.coupling = np.empty((9, members))
         self.tangent = np.empty((members, nodes, 2, 2))
         self.force_t = np.empty((n_dofs, members))
@@ -280,6 +281,7 @@ class NonlinearForces:
         radial = np.zeros((m, system.n_nodes))
         in_contact = np.zeros((m, system.n_nodes), dtype=bool)
         bending_z_acceleration_t = None
+        self.strain_operators.set_top_angle(fields.top_angle_rad)
         if self.imbalance is not None:                # issue 12: rotating imbalance force
             self.imbalance.set_top_angle(fields.top_angle_rad)
             if fields.bending_z_acceleration is not None:

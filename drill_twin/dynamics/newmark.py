@@ -376,6 +376,7 @@ class NewmarkIntegrator:
         hole = np.empty(members)
         finite = np.empty(members, dtype=bool)
         converged = np.empty(members, dtype=bool)
+        self.forces.strain_operators.set_top_angle(top_angle)   # printed_absolute's
         if self.forces.imbalance is not None:          # the angle its force turns with
             self.forces.imbalance.set_top_angle(top_angle)
         iterations, robust, count = compiled.step(

@@ -165,7 +165,7 @@ def tangent_stiffness(g: np.ndarray, s: SectionStiffness) -> np.ndarray:
 
 def printed_eq15_strains(g: np.ndarray, theta_x) -> np.ndarray:
     """
-    The strains g~ for which W(g~) is the energy of Eq. 15 as printed, shape (..., 8).
+    Return the strains g~ whose W(g~) is the energy of Eq. 15 as printed, shape (..., 8).
 
     Eq. 15 as printed, u_x = u - y theta_z + z theta_y, is the kinematics used here with the
     tilts turned by the twist angle theta_x (rad; absolute or elastic, as the reading says):
@@ -190,8 +190,9 @@ def printed_eq15_strains(g: np.ndarray, theta_x) -> np.ndarray:
 
 def printed_eq15_jacobian(theta_x: float) -> np.ndarray:
     """
-    dg~/dg of :func:`printed_eq15_strains` where the section is neither tilted nor twisted
-    at the rate (theta_y = theta_z = tau = 0; the prestress), shape (8, 8).
+    Return dg~/dg of :func:`printed_eq15_strains` at the prestress, shape (8, 8).
+
+    Where the section is neither tilted nor twisted at a rate (theta_y = theta_z = tau = 0).
 
     The tangent of the printed energy at a frozen twist angle there is J^T H_S J.
     """
