@@ -23,6 +23,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 
 from drill_twin.dynamics.compiled import VECTOR_BATCH, inline, kernel
 from drill_twin.fem import strain_energy as se
@@ -79,7 +80,6 @@ class StrainOperators:
         torsion_rows = system.blocks['torsional'].rows
         twist = np.zeros((points, system.permutation.size))
         twist[:, torsion_rows] = system.theta_x_gauss
-        import scipy.sparse as sp
         twist = sp.csr_matrix(twist)
         twist.sort_indices()
         reading = system.model.config.lateral_readings.strain_kinematics

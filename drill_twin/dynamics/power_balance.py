@@ -77,7 +77,8 @@ class LateralEnergyBalance:
         forces['damping'] = -state.q_rate[:, self.columns] @ self.damping.T
         if physics.finite_strain:
             forces['finite_strain'] = self._project(
-                finite_strain_force(system, fields.displacement, self.strain_operators))
+                finite_strain_force(system, fields.displacement, self.strain_operators,
+                                    top_angle_rad=state.top_angle_rad))
         if physics.kinetic_coupling:
             forces['kinetic_coupling'] = self._project(
                 kinetic_coupling_force(system, fields, self.coupling_operators))
