@@ -28,6 +28,7 @@ simulated time (from zero in fast mode, from the first /clock message with use_s
 """
 from __future__ import annotations
 
+from collections import Counter
 import sys
 import time
 
@@ -70,6 +71,8 @@ _LIVE_VIEW_KEYS = {itf.CMD_TOP_DRIVE_SPEED: 'top_drive_speed_rad_per_s',
 
 FAST_PERIOD_S = 1e-6
 FROZEN_AFTER_S = 1.0
+WALL_CONTACT_EVENTS = ('impact', 'contact_end')
+"""Events counted on the console once a health period (each one still on /diagnostics)."""
 """Wall time without a step after which health warns that the twin's clock stands still (s)."""
 
 
@@ -201,6 +204,7 @@ class TwinNode(Node):
         self._advanced_at = time.monotonic()    # the last tick that took steps
         self.monitor = HealthMonitor()
         self._latest_health = {}
+        self._wall_contacts_unreported = Counter()
         self.commands_superseded = 0
         self.commands_dropped = 0
         self._pending_commands = {}             # topic -> value accepted since the last tick
@@ -435,7 +439,12 @@ class TwinNode(Node):
     def _after_tick(self, snapshot, now: int) -> None:
         """Report the tick's events, notice a failed log, stop at ``duration_s``."""
         for event in snapshot.events:
-            if event.kind != 'command_rejected':                # already reported
+            if event.kind in WALL_CONTACT_EVENTS:
+                # A whirling string hits the wall tens of times a second: every event goes to
+                # /diagnostics and the log's /rosout, the console gets a count a health period.
+                self._report(event.level, event.message, console=False)
+                self._wall_contacts_unreported[event.kind] += 1
+            elif event.kind != 'command_rejected':              # already reported
                 self._report(event.level, event.message)
         if self.log and not self.log.open:          # a write failed (disk full, ...)
             self._on_log_failure(now)
@@ -487,6 +496,12 @@ class TwinNode(Node):
 
     def _publish_health(self) -> None:
         """Publish the health report of the period since the last one on /diagnostics."""
+        impacts = self._wall_contacts_unreported['impact']
+        if impacts:
+            self.get_logger().warning(
+                f'{impacts} borehole impact{"s" if impacts > 1 else ""} since the last health '
+                f'report (each one on {itf.DIAGNOSTICS} and in the log)')
+        self._wall_contacts_unreported.clear()
         values = self._health_values()
         counters = dict(self._latest_health, commands_dropped=self.commands_dropped)
         report = self.monitor.report(counters, values)
@@ -552,12 +567,14 @@ class TwinNode(Node):
             self.monitor.note('warn', 'frozen', f'the twin\'s clock has not advanced for '
                               f'{still:.1f} s')
 
-    def _report(self, level: str, text: str) -> None:
-        """Write a log line to rosout, and to the MCAP log's /rosout."""
+    def _report(self, level: str, text: str, console: bool = True) -> None:
+        """Write a log line to rosout (unless not ``console``), and to the MCAP log's /rosout."""
         # One call site per severity: rclpy keys a logger's call context by the calling line
         # and raises ValueError if the severity changes between calls from the same line.
         logger = self.get_logger()
-        if level == 'error':
+        if not console:
+            pass
+        elif level == 'error':
             logger.error(text)
         elif level == 'warn':
             logger.warning(text)
