@@ -221,3 +221,14 @@ def test_a_bad_value_from_the_file_is_not_blamed_on_an_unrelated_set(tmp_path):
     assert info.value.source == str(path)
     assert info.value.key == 'fluid.density_kg_per_m3'
     assert 'heaviest drilling muds' in info.value.message
+
+
+def test_the_lateral_profile_is_the_paper_with_an_imbalance(default_config):
+    """config/ritto2009_lateral.yaml (issue 12): the paper's string and point, m e = 50 kg m."""
+    profile = load_config(REPO / 'config' / 'ritto2009_lateral.yaml')
+    imbalance = profile.excitation.imbalance
+    assert imbalance.enabled
+    assert imbalance.mass_kg * imbalance.eccentricity_m == pytest.approx(50.0)
+    assert imbalance.position_m == 1500.0
+    ours, paper = config_to_dict(profile), config_to_dict(default_config)
+    assert {k for k in ours if ours[k] != paper[k]} == {'excitation'}
