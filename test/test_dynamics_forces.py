@@ -193,6 +193,54 @@ def test_contact_force_and_tangent(system):
     assert n == 57
 
 
+@pytest.mark.parametrize('seed', range(4))
+def test_tangential_wall_friction_opposes_the_slip_and_never_does_work(system, seed):
+    """
+    borehole.tangential_friction: a friction force at the contact point (dynamics/contact.py).
+
+    At a node pressed on the wall with a random whirl velocity and spin: the radial force is the
+    paper's, the friction force is tangential, of size mu |F_r| |sign_eps(s)|, and with its moment
+    about the axis it dissipates -mu |F_r| s sign_eps(s) <= 0 (s the slip of the pipe's surface
+    on the wall); rolling without slip (the backward whirl (v', w') . t = -R_o theta_x') feels
+    no friction at all.
+    """
+    rng = np.random.default_rng(seed)
+    node, mu, eps = 60 - 5, 0.3, 0.1                        # a collar node
+    clearance, lever = system.clearance_m[node], system.node_outer_radius_m[node]
+    angle = rng.uniform(0, 2 * np.pi)
+    r = clearance + rng.uniform(1e-4, 2e-3)
+    v, w = r * np.cos(angle), r * np.sin(angle)
+    n, t = np.array([v, w]) / r, np.array([-w, v]) / r
+    u = np.zeros((1, system.n_dofs))
+    u[0, system.field(2).start + node] = v
+    u[0, system.field(4).start + node] = w
+    spin = rng.uniform(-10, 10)
+
+    def forces(whirl_velocity):
+        rate = np.zeros((1, system.n_dofs))
+        rate[0, system.field(1)] = spin
+        rate[0, system.field(2).start + node] = whirl_velocity[0]
+        rate[0, system.field(4).start + node] = whirl_velocity[1]
+        fields = _kinematics(system, u, rate, np.zeros_like(rate))
+        force, contact, _ = contact_force(system, 1e8, mu, eps, fields, tangential=True)
+        lateral = force[0, [system.field(2).start + node, system.field(4).start + node]]
+        return lateral, force[0, system.field(1).start + node], contact.radial_force_n[0, node]
+
+    velocity = rng.normal(size=2)
+    lateral, torque, radial = forces(velocity)
+    assert radial == pytest.approx(1e8 * (r - clearance))
+    assert lateral @ n == pytest.approx(-radial)                  # the paper's normal force
+    slip = velocity @ t + lever * spin
+    sign = slip / np.hypot(slip, eps * lever)
+    assert lateral @ t == pytest.approx(-mu * radial * sign)
+    assert torque == pytest.approx(-mu * radial * lever * sign)
+    power = (lateral - (lateral @ n) * n) @ velocity + torque * spin
+    assert power == pytest.approx(-mu * radial * slip * sign) and power <= 0.0
+    rolling = -lever * spin * t + rng.normal() * n               # no slip, any radial speed
+    lateral, torque, _ = forces(rolling)
+    assert abs(lateral @ t) < 1e-9 * radial and abs(torque) < 1e-9 * radial
+
+
 @pytest.fixture(scope='module')
 def law(default_config):
     return BitRockLaw.from_config(default_config.bit_rock)

@@ -187,12 +187,18 @@ class Stabilizer:
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class Borehole:
-    """The hole and the impact/rubbing law between string and wall (Eq. 17-18)."""
+    """
+    The hole and the impact/rubbing law between string and wall (Eq. 17-18).
+
+    tangential_friction: the wall's friction as a force at the contact point (it can drive
+    backward whirl) instead of the paper's rubbing torque alone (dynamics/contact.py).
+    """
 
     diameter_m: float
     contact_stiffness_n_per_m: float
     friction_coefficient: float
     friction_regularization_rad_per_s: float
+    tangential_friction: bool = False
 
     def __post_init__(self):
         _positive(self, 'diameter_m', 'contact_stiffness_n_per_m',

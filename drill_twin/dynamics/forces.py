@@ -186,7 +186,8 @@ def string_forces(switches, strain_arguments, coupling_arguments, contact_argume
         radial[:, :] = 0.0
         in_contact[:, :] = False
         return 0
-    return accumulate_contact(displacement_t, theta_x_rate_t, *contact_arguments, force_t,
+    return accumulate_contact(displacement_t, theta_x_rate_t, bending_y_rate_t,
+                              bending_z_rate_t, *contact_arguments, force_t,
                               radial, in_contact, tangent)
 
 
@@ -221,7 +222,8 @@ class NonlinearForces:
         self.contact_arguments = (system.n_nodes, self.clearance_m, self.outer_radius_m,
                                   float(borehole.contact_stiffness_n_per_m),
                                   float(borehole.friction_coefficient),
-                                  float(borehole.friction_regularization_rad_per_s))
+                                  float(borehole.friction_regularization_rad_per_s),
+                                  bool(borehole.tangential_friction))
         """The kernels' operands: string_forces takes them as they are."""
 
     def workspace(self, members: int) -> Workspace:

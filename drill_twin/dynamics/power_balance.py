@@ -17,8 +17,6 @@ acts on (the top drive in the end).
 """
 from __future__ import annotations
 
-from types import SimpleNamespace
-
 import numpy as np
 
 from drill_twin.dynamics.contact import contact_force
@@ -86,9 +84,8 @@ class LateralEnergyBalance:
             borehole = system.model.config.borehole
             force, _, _ = contact_force(
                 system, borehole.contact_stiffness_n_per_m, borehole.friction_coefficient,
-                borehole.friction_regularization_rad_per_s,
-                SimpleNamespace(displacement=fields.displacement,
-                                theta_x_rate=fields.theta_x_rate))
+                borehole.friction_regularization_rad_per_s, fields,
+                tangential=borehole.tangential_friction)
             forces['contact'] = self._project(force)
         imbalance = simulator.forces.imbalance
         if imbalance is not None:
