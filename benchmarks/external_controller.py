@@ -33,6 +33,8 @@ TORSIONAL_AXIAL = ['physics.contact=false', 'physics.kinetic_coupling=false',
                    'physics.finite_strain=false', 'reduced_basis.lateral_modes=0',
                    'initial_conditions.lateral_deflection_m=0']
 DT_S = 0.01
+CONTROLLER_HEAD_START_S = 5.0
+"""The controller's start before the twin's (its imports and DDS set-up), s."""
 
 
 def overrides(wob_kn: float) -> list[str]:
@@ -58,17 +60,26 @@ def built_in_bit_speed(settings: list[str], duration_s: float, on_at_s: float) -
     return np.array(speed)
 
 
-def logged_bit_speed(log_dir: Path) -> tuple[np.ndarray, np.ndarray]:
-    """(twin time from the first state s, bit speed rad/s) of the logged bit states."""
+def logged_run(log_dir: Path) -> tuple[np.ndarray, np.ndarray, float]:
+    """
+    (stamps s, bit speed rad/s) of the logged bit states and the first applied speed command.
+
+    Stamps are the twin's clock (the system clock at its start plus the twin time).
+    """
     from mcap_ros2.reader import read_ros2_messages
 
     (path,) = glob.glob(str(log_dir / '*' / '*.mcap'))
-    stamps, speed = [], []
-    for m in read_ros2_messages(path, topics=['/drill_twin/bit/state']):
+    stamps, speed, first_command = [], [], None
+    for m in read_ros2_messages(path, topics=['/drill_twin/bit/state',
+                                              '/drill_twin/cmd_applied/top_drive_speed']):
         stamp = m.ros_msg.header.stamp
-        stamps.append(stamp.sec + 1e-9 * stamp.nanosec)
-        speed.append(m.ros_msg.velocity[1])
-    return np.array(stamps), np.array(speed)
+        seconds = stamp.sec + 1e-9 * stamp.nanosec
+        if m.channel.topic == '/drill_twin/bit/state':
+            stamps.append(seconds)
+            speed.append(m.ros_msg.velocity[1])
+        elif first_command is None or seconds < first_command:
+            first_command = seconds
+    return np.array(stamps), np.array(speed), first_command
 
 
 def main() -> None:
@@ -92,13 +103,16 @@ def main() -> None:
     twin_command += ['--ros-args', '-p', f'time_step_s:={DT_S}']
     controller_command = [sys.executable, str(ROOT / 'examples' / 'impedance_controller.py'),
                           '--start-at', str(args.on_at),
-                          '--duration', str(args.duration + 30.0)]
+                          '--duration', str(args.duration + 30.0 + CONTROLLER_HEAD_START_S)]
     print(f'load average before: {os.getloadavg()}')
     wall = time.perf_counter()
-    twin = subprocess.Popen(twin_command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                            text=True)
+    # The controller first: it counts --start-at from the first reading it hears, which must
+    # be the twin's first tick for both laws to switch on at the same twin time.
     controller = subprocess.Popen(controller_command, stdout=subprocess.PIPE,
                                   stderr=subprocess.STDOUT, text=True)
+    time.sleep(CONTROLLER_HEAD_START_S)
+    twin = subprocess.Popen(twin_command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                            text=True)
     twin_output, _ = twin.communicate()
     controller.send_signal(2)
     controller_output, _ = controller.communicate(timeout=30)
@@ -109,10 +123,14 @@ def main() -> None:
         raise SystemExit(1)
     print('controller:', controller_output.strip().splitlines()[-1])
 
-    stamps, external = logged_bit_speed(out)
+    stamps, external, first_command = logged_run(out)
     # Logged states are the first tick of each logged period: the first is one step in.
     t = stamps - stamps[0] + DT_S
-    built_in = built_in_bit_speed(settings, args.duration, args.on_at)
+    # The external law took effect with its first command: the built-in one is switched on at
+    # that very step (DDS discovery and the first reading decide when, and the SSI of a window
+    # in the transient depends on the phase of the switch in the stick-slip cycle).
+    switched_s = round((first_command - stamps[0] + DT_S) / DT_S) * DT_S
+    built_in = built_in_bit_speed(settings, args.duration, switched_s)
     t_built_in = DT_S * np.arange(1, built_in.size + 1)
     end = args.duration - args.window
 
@@ -120,11 +138,12 @@ def main() -> None:
         chosen = speed[(time_s > start + 1e-9) & (time_s <= stop + 1e-9)]
         return float(kpi.stick_slip_severity(chosen)), float(np.mean(chosen))
 
-    before = ssi(t, external, max(0.0, args.on_at - args.window), args.on_at)
+    before = ssi(t, external, max(0.0, switched_s - args.window), switched_s)
     ext = ssi(t, external, end, args.duration)
     ref = ssi(t_built_in, built_in, end, args.duration)
-    print(f'WOB {args.wob_kn:g} kN, {args.duration:g} s, switched on at {args.on_at:g} s; '
-          f'SSI over the last {args.window:g} s (mean bit speed):')
+    print(f'WOB {args.wob_kn:g} kN, {args.duration:g} s, the external law took effect at '
+          f'{switched_s:.2f} s (asked: {args.on_at:g} s after its first reading), the built-in '
+          f'one switched on then; SSI over the last {args.window:g} s (mean bit speed):')
     print(f'  stiff drive before the switch   {before[0]:.4f} ({before[1]:.2f} rad/s)')
     print(f'  built-in impedance              {ref[0]:.4f} ({ref[1]:.2f} rad/s)')
     print(f'  external impedance through DDS  {ext[0]:.4f} ({ext[1]:.2f} rad/s), '
