@@ -28,7 +28,6 @@ simulated time (from zero in fast mode, from the first /clock message with use_s
 """
 from __future__ import annotations
 
-from collections import Counter
 import sys
 import time
 
@@ -71,9 +70,10 @@ _LIVE_VIEW_KEYS = {itf.CMD_TOP_DRIVE_SPEED: 'top_drive_speed_rad_per_s',
 
 FAST_PERIOD_S = 1e-6
 FROZEN_AFTER_S = 1.0
-WALL_CONTACT_EVENTS = ('impact', 'contact_end')
-"""Events counted on the console once a health period (each one still on /diagnostics)."""
 """Wall time without a step after which health warns that the twin's clock stands still (s)."""
+WALL_CONTACT_EVENTS = ('impact', 'contact_end')
+"""Events kept off the console (each one still on /diagnostics and in the log's /rosout); the
+impacts are counted there once a health period."""
 
 
 class StopFuture(Future):
@@ -204,7 +204,7 @@ class TwinNode(Node):
         self._advanced_at = time.monotonic()    # the last tick that took steps
         self.monitor = HealthMonitor()
         self._latest_health = {}
-        self._wall_contacts_unreported = Counter()
+        self._impacts_unreported = 0
         self.commands_superseded = 0
         self.commands_dropped = 0
         self._pending_commands = {}             # topic -> value accepted since the last tick
@@ -443,7 +443,7 @@ class TwinNode(Node):
                 # A whirling string hits the wall tens of times a second: every event goes to
                 # /diagnostics and the log's /rosout, the console gets a count a health period.
                 self._report(event.level, event.message, console=False)
-                self._wall_contacts_unreported[event.kind] += 1
+                self._impacts_unreported += event.kind == 'impact'
             elif event.kind != 'command_rejected':              # already reported
                 self._report(event.level, event.message)
         if self.log and not self.log.open:          # a write failed (disk full, ...)
@@ -496,12 +496,11 @@ class TwinNode(Node):
 
     def _publish_health(self) -> None:
         """Publish the health report of the period since the last one on /diagnostics."""
-        impacts = self._wall_contacts_unreported['impact']
+        impacts, self._impacts_unreported = self._impacts_unreported, 0
         if impacts:
             self.get_logger().warning(
                 f'{impacts} borehole impact{"s" if impacts > 1 else ""} since the last health '
                 f'report (each one on {itf.DIAGNOSTICS} and in the log)')
-        self._wall_contacts_unreported.clear()
         values = self._health_values()
         counters = dict(self._latest_health, commands_dropped=self.commands_dropped)
         report = self.monitor.report(counters, values)
@@ -572,14 +571,13 @@ class TwinNode(Node):
         # One call site per severity: rclpy keys a logger's call context by the calling line
         # and raises ValueError if the severity changes between calls from the same line.
         logger = self.get_logger()
-        if not console:
-            pass
-        elif level == 'error':
-            logger.error(text)
-        elif level == 'warn':
-            logger.warning(text)
-        else:
-            logger.info(text)
+        if console:
+            if level == 'error':
+                logger.error(text)
+            elif level == 'warn':
+                logger.warning(text)
+            else:
+                logger.info(text)
         if self.log:
             now = self.twin_time_ns()
             self.log.write(itf.ROSOUT, messages.log(level, text, self.get_name(), now), now)
