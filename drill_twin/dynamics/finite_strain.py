@@ -223,9 +223,9 @@ def accumulate_finite_strain(displacement_t, strain_pointer, strain_column, stra
                 for k in range(8):
                     stress[k, i] = ((sigma[k] - prestress_stress[p, k]) - linear[k, i]) * w
         else:
-            _twist_angle(displacement_t, p, reading, twist_pointer, twist_column, twist_value,
-                         top_angle, strain)
             for i in range(members):
+                strain[8, i] = _twist_angle(displacement_t, i, p, reading, twist_pointer,
+                                            twist_column, twist_value, top_angle)
                 _printed_member(strain, linear, stress, g, s, w, prestress_stress, p, i)
         for k in range(8):
             row = 8 * p + k
@@ -241,16 +241,13 @@ def accumulate_finite_strain(displacement_t, strain_pointer, strain_column, stra
 
 
 @inline
-def _twist_angle(displacement_t, p, reading, twist_pointer, twist_column, twist_value,
-                 top_angle, strain):
-    """strain[8] = theta_x at Gauss point p for every member (+ the top angle if absolute)."""
-    base = top_angle[0] if reading == 2 else 0.0
-    for i in range(displacement_t.shape[1]):
-        strain[8, i] = base
+def _twist_angle(displacement_t, i, p, reading, twist_pointer, twist_column, twist_value,
+                 top_angle):
+    """Return theta_x of member i at Gauss point p (rad; + the top angle if absolute)."""
+    total = top_angle[0] if reading == 2 else 0.0
     for j in range(twist_pointer[p], twist_pointer[p + 1]):
-        column, value = twist_column[j], twist_value[j]
-        for i in range(displacement_t.shape[1]):
-            strain[8, i] += value * displacement_t[column, i]
+        total += twist_value[j] * displacement_t[twist_column[j], i]
+    return total
 
 
 @inline
@@ -291,10 +288,8 @@ def _accumulate_member(displacement_t, i, strain_pointer, strain_column, strain_
             for k in range(8):
                 stress[k, i] = ((sigma[k] - prestress_stress[p, k]) - linear[k, i]) * w
         else:
-            total = top_angle[0] if reading == 2 else 0.0
-            for j in range(twist_pointer[p], twist_pointer[p + 1]):
-                total += twist_value[j] * displacement_t[twist_column[j], i]
-            strain[8, i] = total
+            strain[8, i] = _twist_angle(displacement_t, i, p, reading, twist_pointer,
+                                        twist_column, twist_value, top_angle)
             _printed_member(strain, linear, stress, g, s, w, prestress_stress, p, i)
         for k in range(8):
             row = 8 * p + k
