@@ -183,7 +183,7 @@ def test_the_student_t_bounds_cover_a_new_draw_95_percent_of_the_time():
     standard errors); the members' own 2.5-97.5 % percentiles hold it less than (N - 1)/(N + 1)
     = 78 % of the time.
     """
-    from drill_twin.assimilation.offline import interval
+    from drill_twin.assimilation.bounds import interval
 
     rng = np.random.default_rng(11)
     draws = rng.normal(size=(4000, 9))

@@ -19,7 +19,7 @@ from drill_twin.dynamics.simulator import Simulator
 from drill_twin.twin.engine import CommandRejected, EnsembleSettings, TwinEngine
 from drill_twin.twin.envelope import (ENVELOPE_WEIGHT_ON_BIT_MAX_N,
                                       PLAUSIBLE_BLOCK_SPEED_M_PER_S, StringEnvelope)
-from drill_twin.twin.guard import StateGuard
+from drill_twin.twin.guard import FORCE_MULTIPLE, StateGuard
 
 TWIN_STEP = ['integration.time_step_s=0.01']
 
@@ -292,3 +292,32 @@ def test_a_members_torque_bound_is_that_of_its_own_random_law(config):
     bounds = StateGuard(system, law, germs=germs).torque_on_bit_max_nm
     assert np.ndim(mean) == 0 and bounds.shape == (3,)
     np.testing.assert_allclose(bounds, [mean, 1.3 * mean, mean], rtol=2e-3)
+
+
+def test_the_torque_bound_of_coupled_germs_is_each_members_law_evaluated_directly(config):
+    """
+    The bound of germs with coupling (G12 != 0) is the largest |TOB| of each member's random
+    law (Eq. 50) over the envelope's points, evaluated member by member; ``set_germs``
+    follows germs that change (an ensemble filter estimates them).
+    """
+    from drill_twin.twin.envelope import (ENVELOPE_TOP_DRIVE_SPEED_MAX_RAD_PER_S,
+                                          PLAUSIBLE_BLOCK_SPEED_M_PER_S)
+    from drill_twin.uncertainty.germ import germs_for_realizations
+    simulator = Simulator(config)
+    system, law = simulator.system, simulator.law
+    germs = germs_for_realizations(0.3, 7, range(12))
+    assert np.min(np.abs(germs[:, 0, 1])) > 1e-3
+    guard = StateGuard(system, law)
+    weight = guard.envelope.weight_on_bit_max_n
+    omega = np.linspace(0.01, ENVELOPE_TOP_DRIVE_SPEED_MAX_RAD_PER_S, 400)
+    rop = np.clip(law.steady_rop(omega, -weight), 0.0, PLAUSIBLE_BLOCK_SPEED_M_PER_S)
+    force, torque = law.mean(rop, omega)
+    mean = np.max(np.abs(torque))
+    expected = [max(np.max(np.abs(law.randomised(force, torque, rop, rop, omega,
+                                                 np.broadcast_to(g, (400, 2, 2)))[1])), mean)
+                for g in germs]
+    guard.set_germs(germs)
+    np.testing.assert_allclose(guard.torque_on_bit_max_nm, FORCE_MULTIPLE * np.array(expected),
+                               rtol=1e-12)
+    guard.set_germs(None)
+    assert guard.torque_on_bit_max_nm == pytest.approx(FORCE_MULTIPLE * mean, rel=1e-12)

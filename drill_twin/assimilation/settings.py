@@ -127,7 +127,7 @@ class Filter:
     channels it uses; blocks: the reduced-coordinate blocks it analyses (the others are left
     as each member has them: localisation by variable); parameters: germ (the bit-rock germ
     as an augmented state) or none; prior_dispersion: delta of the members' initial germs;
-    bounds: how the 95 % bounds are drawn from the members (offline.interval);
+    bounds: how the 95 % bounds are drawn from the members (bounds.interval);
     model_error_bit_speed_rad_per_s: additive inflation for model error, the standard
     deviation of a centred random change of each member's bit speed after each analysis
     (rad/s, 0: none); seed: of the germs and the perturbations.

@@ -28,13 +28,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from drill_twin.assimilation.bounds import interval
+from drill_twin.assimilation.sequential import Sample, sample_problem
 from drill_twin.config import ConfigError
 from drill_twin.config.schema import DrillStringConfig
 from drill_twin.dynamics import kpi
 from drill_twin.dynamics import rig
 from drill_twin.dynamics.simulator import Observation, Simulator
 from drill_twin.twin.ensemble import (BIT_FIELDS, EnsembleFailed, EnsembleResult,
-                                      EnsembleSettings, LocalEnsemble, open_ensemble)
+                                      EnsembleSettings, LocalEnsemble, measurement_refused,
+                                      open_ensemble)
 from drill_twin.twin.envelope import StringEnvelope
 from drill_twin.twin.stepping import (MAX_CONSECUTIVE_FAILURES, GuardedSimulator, TwinEvent,
                                       TwinStalled)
@@ -87,7 +90,10 @@ class TwinSnapshot:
     severity (-), MSE (Pa), ROP (m/h) over the KPI window, each None when it cannot be
     computed (no window yet, the bit not turning forwards or not advancing on average, or a
     non-finite value): never a substitute number; events since the last tick; health: step,
-    timing and failure counters.
+    timing and failure counters. With assimilation the ensemble is the filter's analysed
+    ensemble, its bounds drawn as the filter's settings say (``filter.bounds``), and
+    ``analyses`` holds the analyses the ensemble made since the last snapshot
+    (:class:`~drill_twin.assimilation.sequential.AnalysisRecord`).
     """
 
     time_s: float
@@ -105,6 +111,7 @@ class TwinSnapshot:
     events: tuple
     health: dict
     surface: SurfaceReadings | None = None
+    analyses: tuple = ()
 
 
 class TwinEngine:
@@ -158,6 +165,37 @@ class TwinEngine:
         self._ensemble_latest: EnsembleResult | None = (
             self.ensemble_runner.latest if self.ensemble_runner else None)
         self._ensemble_resets = 0
+        self._samples: list[Sample] = []
+        self._analyses: list = []
+        self.measurements_refused = 0
+        self.measurements_received = 0
+
+    @property
+    def assimilating(self) -> bool:
+        """Whether the ensemble is an ensemble Kalman filter's (it has assimilation settings)."""
+        return self.ensemble.assimilation is not None and self.ensemble_runner is not None
+
+    def offer_measurement(self, sample: Sample) -> str | None:
+        """
+        Hand a rig measurement sample to the ensemble filter (with the next tick's work).
+
+        Return why it is refused (one phrase; a 'measurement_rejected' event, counted), or
+        None. The stamp is in model time (s).
+        """
+        self.measurements_received += 1
+        problem = sample_problem(sample)
+        if problem is None and not self.assimilating:
+            problem = 'the twin does not assimilate (no ensemble filter)'
+        if problem is not None:
+            self.refuse_measurement(problem)
+            return problem
+        self._samples.append(sample)
+        return None
+
+    def refuse_measurement(self, problem: str) -> None:
+        """Count a measurement refused before it became a sample (e.g. a malformed message)."""
+        self.measurements_refused += 1
+        self._events.append(measurement_refused(self.time_s, problem))
 
     @property
     def retries(self) -> int:
@@ -380,9 +418,10 @@ class TwinEngine:
         """
         if self.ensemble_runner is None:
             return
+        samples, self._samples = tuple(self._samples), []
         try:
             latest = self.ensemble_runner.collect()
-            self.ensemble_runner.start(steps, top_speeds, self.hook_load_command, block)
+            self.ensemble_runner.start(steps, top_speeds, self.hook_load_command, block, samples)
         except (EnsembleFailed, TwinStalled) as error:
             self.ensemble_runner.close()
             self.ensemble_runner, self._ensemble_latest = None, None
@@ -393,6 +432,7 @@ class TwinEngine:
         if latest is not self._ensemble_latest:
             self._events.extend(latest.events)
             self._ensemble_resets = latest.resets
+            self._analyses.extend(latest.analyses)
         self._ensemble_latest = latest
 
     def _watch(self, before, now) -> None:
@@ -454,12 +494,18 @@ class TwinEngine:
         mean = lower = upper = ensemble_step = ensemble_time = None
         ensemble = self._ensemble_latest
         if ensemble is not None:
-            mean = BitState(*map(float, ensemble.bit.mean(axis=0)))
-            low, high = _quantiles(ensemble.bit, 0.025, 0.975)
+            if self.ensemble.assimilation is not None:
+                centre, low, high = interval(ensemble.bit,
+                                             self.ensemble.assimilation.filter.bounds)
+            else:
+                centre = ensemble.bit.mean(axis=0)
+                low, high = _quantiles(ensemble.bit, 0.025, 0.975)
+            mean = BitState(*map(float, centre))
             lower, upper = BitState(*map(float, low)), BitState(*map(float, high))
             ensemble_step, ensemble_time = ensemble.step, ensemble.time_s
         ssi, mse, rop = self._kpis()
         events, self._events = tuple(self._events), []
+        analyses, self._analyses = tuple(self._analyses), []
         wall = np.array(self._wall_per_tick) if self._wall_per_tick else np.zeros(1)
         guarded = self._mean
         health = {
@@ -480,6 +526,10 @@ class TwinEngine:
             'commands_received': self.commands_received,
             'ensemble_members_touching_wall': ensemble.touching_wall if ensemble else 0,
             'ensemble_members_lifted_off': ensemble.lifted_off if ensemble else 0,
+            'measurements_received': self.measurements_received,
+            'measurements_refused': (self.measurements_refused
+                                     + (ensemble.samples_refused if ensemble else 0)),
+            'measurements_used': ensemble.samples_used if ensemble else 0,
         }
         return TwinSnapshot(time_s=o.time_s, step=self.step_index, bit=bit, ensemble_mean=mean,
                             ensemble_lower=lower, ensemble_upper=upper,
@@ -487,7 +537,8 @@ class TwinEngine:
                             observation=o, stick_slip_severity=ssi, mse_pa=mse,
                             rop_m_per_h=rop, events=events, health=health,
                             surface=surface_readings(self.simulator, o,
-                                                     self.envelope.string_weight_n))
+                                                     self.envelope.string_weight_n),
+                            analyses=analyses)
 
     def _kpis(self) -> tuple[float | None, float | None, float | None]:
         """

@@ -17,6 +17,11 @@ receives the reduced system built here.
 
 Member j (1..N) carries the germ of realization j - 1 of the stream ``seed``
 (:func:`~drill_twin.uncertainty.germ.germs_for_realizations`).
+
+With ``assimilation`` settings the ensemble is an ensemble Kalman filter's
+(:class:`~drill_twin.assimilation.sequential.SequentialFilter`, docs/ASSIMILATION.md): the rig's
+measurement samples handed over with a tick's work are analysed as the members' time reaches
+their stamps, the members' state and germs corrected; each result carries the tick's analyses.
 """
 from __future__ import annotations
 
@@ -33,6 +38,8 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from drill_twin.assimilation.sequential import AnalysisRecord, Sample, SequentialFilter
+from drill_twin.assimilation.settings import AssimilationConfig
 from drill_twin.config.schema import DrillStringConfig
 from drill_twin.dynamics import rig
 from drill_twin.dynamics.drawworks import FollowedBlock
@@ -63,17 +70,21 @@ class EnsembleSettings:
 
     ``members`` random realizations of dispersion ``dispersion`` drawn from the stream ``seed``;
     ``separate_process``: integrate them in a worker process (a second core) instead of this
-    one.
+    one; ``assimilation``: the ensemble filter's settings (None: open loop; the filter's
+    Generator is spawned from ``seed``).
     """
 
     members: int = 16
     dispersion: float = 0.01
     seed: int = 0
     separate_process: bool = False
+    assimilation: AssimilationConfig | None = None
 
     def __post_init__(self):
         if self.members < 0:
             raise ValueError(f'ensemble members: must be >= 0, got {self.members}')
+        if self.assimilation is not None and self.members < 2:
+            raise ValueError(f'ensemble members: assimilation needs >= 2, got {self.members}')
         validate_dispersion(self.dispersion)
         if self.seed < 0:
             raise ValueError(f'seed: must be >= 0, got {self.seed}')
@@ -90,8 +101,10 @@ class EnsembleResult:
 
     step: model steps taken; time_s: its time (s); bit: shape (N, 6), columns BIT_FIELDS (SI);
     touching_wall, lifted_off: how many members touch the borehole wall or have their bit
-    off the rock; events: restarts of diverged members; resets: members restarted so far;
-    iterations_per_step: of the tick; wall_s: the wall time the tick's steps took (s).
+    off the rock; events: restarts of diverged members, refused measurement samples; resets:
+    members restarted so far; iterations_per_step: of the tick; wall_s: the wall time the
+    tick's steps took (s); analyses: the ensemble filter's analyses of the tick (empty in
+    open loop); samples_used, samples_refused: the filter's counts so far.
     """
 
     step: int
@@ -103,6 +116,9 @@ class EnsembleResult:
     resets: int
     iterations_per_step: float
     wall_s: float = 0.0
+    analyses: tuple[AnalysisRecord, ...] = ()
+    samples_used: int = 0
+    samples_refused: int = 0
 
 
 class LocalEnsemble:
@@ -119,6 +135,11 @@ class LocalEnsemble:
         self.top = FollowedTopSpeed(simulator.top_drive.speed_rad_per_s)
         simulator.top_drive = self.top                  # the members turn with the rig's top
         simulator.reset_listeners.append(self._reseat)
+        self.filter = None
+        if settings.assimilation is not None:
+            rng = np.random.default_rng(np.random.SeedSequence(settings.seed, spawn_key=(1,)))
+            self.filter = SequentialFilter(simulator, settings.members, settings.assimilation,
+                                           rng)
         self.step_index = 0
         self._request = None
         self.latest = self._result(0.0)
@@ -127,16 +148,18 @@ class LocalEnsemble:
     def simulator(self) -> Simulator:
         return self.guarded.simulator
 
-    def start(self, steps: int, top_speeds_rad_per_s, hook_load_n: float, block=None) -> None:
+    def start(self, steps: int, top_speeds_rad_per_s, hook_load_n: float, block=None,
+              samples: tuple[Sample, ...] = ()) -> None:
         """
         Take a tick's work: ``steps`` model steps under what the rig applied in them.
 
         top_speeds_rad_per_s: the top speed at the end of each step, shape (steps,);
         block: None (every member under ``hook_load_n``, N), or the rig's block as (positions
         m, velocities m/s) at the end of each step, shapes (steps,): each member's line then
-        hangs from it (:class:`~drill_twin.dynamics.drawworks.FollowedBlock`).
+        hangs from it (:class:`~drill_twin.dynamics.drawworks.FollowedBlock`); samples: the
+        rig's measurement samples received since the last tick (for the ensemble filter).
         """
-        self._request = (steps, top_speeds_rad_per_s, hook_load_n, block)
+        self._request = (steps, top_speeds_rad_per_s, hook_load_n, block, tuple(samples))
 
     def _reseat(self, members) -> None:
         if self.block.slack_m is not None:
@@ -147,8 +170,11 @@ class LocalEnsemble:
         if self._request is None:
             return self.latest
         start = time.perf_counter()
-        steps, speeds, hook, block = self._request
+        steps, speeds, hook, block, samples = self._request
         self._request = None
+        if self.filter is not None:
+            for sample in samples:
+                self.filter.offer(sample)                # a refusal is kept in its refusals
         if block is None:
             self.block.release()
             self.simulator.set_hook_load(hook)
@@ -162,22 +188,39 @@ class LocalEnsemble:
             if result is not None:
                 self.step_index += 1
                 iterations += result.iterations
-        self.latest = self._result(iterations / max(steps, 1), time.perf_counter() - start)
+                if self.filter is not None and self.filter.after_step() is not None:
+                    self.guarded.guard.set_germs(self.simulator.integrator.germ)
+        analyses, events = (), ()
+        if self.filter is not None:
+            analyses = tuple(self.filter.take_history())
+            events = tuple(measurement_refused(self.simulator.time_s, problem)
+                           for problem in self.filter.take_refusals())
+        self.latest = self._result(iterations / max(steps, 1), time.perf_counter() - start,
+                                   analyses, events)
         return self.latest
 
     def close(self) -> None:
         pass
 
-    def _result(self, iterations_per_step: float, wall_s: float = 0.0) -> EnsembleResult:
+    def _result(self, iterations_per_step: float, wall_s: float = 0.0, analyses=(),
+                events=()) -> EnsembleResult:
         o = self.simulator.observe(detailed=0)
         bit = np.stack([getattr(o, name) for name in BIT_FIELDS], axis=1)
         return EnsembleResult(step=self.step_index, time_s=o.time_s, bit=bit,
                               touching_wall=int(o.in_contact.any(axis=1).sum()),
                               lifted_off=int(o.lifted.sum()),
-                              events=tuple(self.guarded.take_events()),
+                              events=tuple(self.guarded.take_events()) + tuple(events),
                               resets=self.guarded.resets,
                               iterations_per_step=float(iterations_per_step),
-                              wall_s=float(wall_s))
+                              wall_s=float(wall_s), analyses=analyses,
+                              samples_used=self.filter.samples_used if self.filter else 0,
+                              samples_refused=self.filter.samples_refused if self.filter else 0)
+
+
+def measurement_refused(time_s: float, problem: str) -> TwinEvent:
+    """The event of a measurement sample the twin could not use (the twin goes on)."""
+    return TwinEvent('measurement_rejected', 'warn', time_s,
+                     f'measurement refused: {problem}', {'reason': problem})
 
 
 class EnsembleProcess:
@@ -217,9 +260,11 @@ class EnsembleProcess:
             self.close()
             raise
 
-    def start(self, steps: int, top_speeds_rad_per_s, hook_load_n: float, block=None) -> None:
+    def start(self, steps: int, top_speeds_rad_per_s, hook_load_n: float, block=None,
+              samples: tuple[Sample, ...] = ()) -> None:
         try:
-            self._connection.send((steps, top_speeds_rad_per_s, hook_load_n, block))
+            self._connection.send((steps, top_speeds_rad_per_s, hook_load_n, block,
+                                   tuple(samples)))
         except OSError as error:
             raise EnsembleFailed(self._ended(error)) from None
         self._pending = True

@@ -67,10 +67,8 @@ class StateGuard:
         self.axial_speed_max_m_per_s = SPEED_MULTIPLE * block
         self.weight_on_bit_max_n = FORCE_MULTIPLE * (e.weight_on_bit_max_n
                                                      + e.axial_impedance_n_s_per_m * block)
-        self.torque_on_bit_max_nm = FORCE_MULTIPLE * np.maximum(
-            largest_torque_on_bit_nm(law, ENVELOPE_TOP_DRIVE_SPEED_MAX_RAD_PER_S,
-                                     e.weight_on_bit_max_n, germs), TORQUE_FLOOR_NM)
-        """Scalar (mean law) or (m,) (the members' random laws) (N m)."""
+        self.law = law
+        self.set_germs(germs)
         stiffness = config.borehole.contact_stiffness_n_per_m
         self.bit_penetration_m = self.weight_on_bit_max_n / stiffness
         self.lateral = config.physics.contact
@@ -102,6 +100,17 @@ class StateGuard:
             self._bending.append(rows)
         self._mass = None if np.array_equal(system.mass, np.eye(system.size)) else system.mass
         self._deepest = None
+
+    def set_germs(self, germs) -> None:
+        """
+        Derive the TOB bound from the members' germs (m, 2, 2), or the mean law's (None).
+
+        Called again when the germs change (an ensemble filter estimates them).
+        """
+        self.torque_on_bit_max_nm = FORCE_MULTIPLE * np.maximum(
+            largest_torque_on_bit_nm(self.law, ENVELOPE_TOP_DRIVE_SPEED_MAX_RAD_PER_S,
+                                     self.envelope.weight_on_bit_max_n, germs), TORQUE_FLOOR_NM)
+        """Scalar (mean law) or (m,) (the members' random laws) (N m)."""
 
     def rotation_speed_max(self, top_speed_rad_per_s: float) -> float:
         """Bound of |bit speed| (rad/s) at a top-drive speed."""

@@ -1,0 +1,250 @@
+"""
+The ensemble filter as it runs beside a batch being stepped: samples in, analyses out.
+
+One implementation for the offline filter (:mod:`.offline`, samples delivered at their
+arrival times in a log) and the twin's online ensemble (:mod:`drill_twin.twin.ensemble`,
+samples delivered as the rig's messages come in). The caller steps the Simulator and calls
+:meth:`SequentialFilter.after_step` after every step; samples are handed over with
+:meth:`SequentialFilter.offer` whenever they arrive.
+
+After every step each analysed member's predictions of the filter's channels are recorded
+in a ring buffer covering the last ``horizon_s`` of model time. Every
+1 / analysis_rate_hz of model time the samples whose stamp the batch has reached are
+analysed together: each is compared with the members' predictions at its stamp (linearly
+interpolated between the two steps around it; exact on a step), so a sample that arrives
+late (mud-pulse telemetry, network latency, a twin lagging the rig) is compared with what
+the members predicted when it was taken. Every analysis applies its member transform to the
+buffer as well as to the state (an ensemble smoother step: exact for linear dynamics), so a
+sample analysed later sees predictions consistent with the analysed state. A sample stamped
+before the buffer's start is refused (too old); one stamped beyond the batch's time waits.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from drill_twin.assimilation.bounds import BOUNDS_PERCENT
+from drill_twin.assimilation.filter import analyse
+from drill_twin.assimilation.measurements import SENSOR_CHANNELS, channel_values
+from drill_twin.assimilation.settings import SENSOR_OF, AssimilationConfig
+from drill_twin.assimilation.state import MemberState
+
+LATE_TOLERANCE_S = 2.0
+"""How much later than its sensor's stated delay a sample may still arrive (s)."""
+EARLY_TOLERANCE_S = 5.0
+"""How far ahead of the batch a sample's stamp may be (s): farther is a clock error."""
+
+
+@dataclass(frozen=True)
+class Sample:
+    """
+    One sensor's reading: ``stamp_s`` (model time when sampled, s) and ``values`` {channel:
+    value in SI, the driller's signs} (:mod:`.measurements`).
+    """
+
+    sensor: str
+    stamp_s: float
+    values: dict
+
+
+@dataclass(frozen=True)
+class AnalysisRecord:
+    """
+    One analysis: its model time (s), normalised innovation squared and number of measured
+    values, and the analysed members' germ entries (G11, G12, G22): mean, 2.5 % and 97.5 %.
+    """
+
+    time_s: float
+    nis: float
+    measurements: int
+    germ_mean: tuple
+    germ_lower: tuple
+    germ_upper: tuple
+
+
+def sample_problem(sample: Sample) -> str | None:
+    """Return why ``sample`` cannot be used (one phrase), or None."""
+    if sample.sensor not in SENSOR_CHANNELS:
+        return f'unknown sensor {sample.sensor!r}'
+    if not math.isfinite(sample.stamp_s):
+        return f'{sample.sensor} sample stamp {sample.stamp_s} is not finite'
+    for channel, value in sample.values.items():
+        if SENSOR_OF.get(channel) != sample.sensor:
+            return f'{sample.sensor} sample carries {channel!r}, not one of its channels'
+        if not math.isfinite(value):
+            return f'{sample.sensor} sample: {channel} = {value} is not finite'
+    return None
+
+
+class SequentialFilter:
+    """
+    The ensemble filter over members 0..members-1 of ``simulator`` (module docstring).
+
+    :param simulator: the batch (with germs when ``settings.filter.parameters`` is 'germ').
+    :param members: how many of its first members are analysed (>= 2).
+    :param settings: the filter, its channels' noise, the sensors' delays.
+    :param rng: the Generator of the perturbed observations and the additive model error.
+    :param horizon_s: how far back a sample's stamp may be (s); by default the largest delay
+        of the sensors the filter uses plus LATE_TOLERANCE_S.
+    """
+
+    def __init__(self, simulator, members: int, settings: AssimilationConfig,
+                 rng: np.random.Generator, horizon_s: float | None = None):
+        spec = settings.filter
+        self.simulator = simulator
+        self.settings = settings
+        self.state = MemberState(simulator, members, spec.blocks, spec.parameters)
+        self.members = int(members)
+        self.rng = rng
+        self.channels = tuple(spec.measurements)
+        dt = simulator.dt
+        self.analysis_every = max(1, int(round(1.0 / (spec.analysis_rate_hz * dt))))
+        if horizon_s is None:
+            horizon_s = max(settings.sensor_of(c).delay_s for c in self.channels) \
+                + LATE_TOLERANCE_S
+        self.horizon_s = float(horizon_s)
+        capacity = int(math.ceil(self.horizon_s / dt)) + 2
+        self._times = np.full(capacity, -np.inf)
+        self._predicted = np.zeros((capacity, self.members, len(self.channels)))
+        self._records = 0
+        self._steps = 0
+        self._pending: list[Sample] = []
+        self.analyses = 0
+        self.samples_used = 0
+        self.samples_refused = 0
+        self.refusals: list[str] = []
+        """Why samples were refused since the last :meth:`take_refusals`."""
+        self.history: list[AnalysisRecord] = []
+        """The analyses since the last :meth:`take_history`."""
+
+    # -- samples in ----------------------------------------------------------------------
+    def offer(self, sample: Sample) -> str | None:
+        """
+        Take a sample; return why it is refused (one phrase, also kept in ``refusals``).
+
+        Only the filter's channels of the sample are used; a sample with none of them is
+        accepted and ignored.
+        """
+        problem = sample_problem(sample)
+        now = self.simulator.time_s
+        if problem is None and sample.stamp_s < now - self.horizon_s:
+            problem = (f'{sample.sensor} sample stamped {sample.stamp_s:.3f} s is older than '
+                       f'the {self.horizon_s:g} s the filter looks back (model time '
+                       f'{now:.3f} s)')
+        if problem is None and sample.stamp_s > now + EARLY_TOLERANCE_S:
+            problem = (f'{sample.sensor} sample stamped {sample.stamp_s:.3f} s is more than '
+                       f'{EARLY_TOLERANCE_S:g} s ahead of the model ({now:.3f} s)')
+        if problem is not None:
+            self._refuse(problem)
+            return problem
+        if any(c in self.channels for c in sample.values):
+            self._pending.append(sample)
+        return None
+
+    def _refuse(self, problem: str) -> None:
+        self.samples_refused += 1
+        self.refusals.append(problem)
+
+    def take_refusals(self) -> list[str]:
+        refusals, self.refusals = self.refusals, []
+        return refusals
+
+    def take_history(self) -> list[AnalysisRecord]:
+        history, self.history = self.history, []
+        return history
+
+    # -- stepping ------------------------------------------------------------------------
+    def after_step(self) -> AnalysisRecord | None:
+        """Record the members' predictions; analyse when due; return the analysis, if any."""
+        self._record()
+        self._steps += 1
+        if self._steps % self.analysis_every:
+            return None
+        return self._analyse_ready()
+
+    def _record(self) -> None:
+        o = self.simulator.observe(detailed=self.members)
+        slot = self._records % self._times.size
+        self._times[slot] = o.time_s
+        for column, channel in enumerate(self.channels):
+            self._predicted[slot, :, column] = channel_values(o, channel, self.members)
+        self._records += 1
+
+    def _prediction_at(self, stamp_s: float) -> np.ndarray | None:
+        """The members' predictions (N, channels) at ``stamp_s``, or None outside the buffer."""
+        slots = np.flatnonzero(np.isfinite(self._times))
+        if slots.size == 0:
+            return None
+        slots = slots[np.argsort(self._times[slots])]
+        t = self._times[slots]
+        if not t[0] - 1e-9 <= stamp_s <= t[-1] + 1e-9:
+            return None
+        k = min(int(np.searchsorted(t, stamp_s - 1e-9)), t.size - 1)
+        if k == 0 or abs(t[k] - stamp_s) <= 1e-9:
+            return self._predicted[slots[k]]
+        weight = (stamp_s - t[k - 1]) / (t[k] - t[k - 1])
+        return ((1.0 - weight) * self._predicted[slots[k - 1]]
+                + weight * self._predicted[slots[k]])
+
+    def _analyse_ready(self) -> AnalysisRecord | None:
+        now = self.simulator.time_s
+        ready = [s for s in self._pending if s.stamp_s <= now + 1e-9]
+        if not ready:
+            return None
+        self._pending = [s for s in self._pending if s.stamp_s > now + 1e-9]
+        Y, y, variance = [], [], []
+        for sample in ready:
+            prediction = self._prediction_at(sample.stamp_s)
+            if prediction is None:
+                self._refuse(f'{sample.sensor} sample stamped {sample.stamp_s:.3f} s is '
+                             f'before what the filter recorded (from {self._oldest():.3f} s)')
+                continue
+            for column, channel in enumerate(self.channels):
+                if channel not in sample.values:
+                    continue
+                Y.append(prediction[:, column])
+                y.append(float(sample.values[channel]))
+                variance.append(float(self.settings.channel(channel).std(
+                    prediction[:, column].mean())) ** 2)
+            self.samples_used += 1
+        if not y:
+            return None
+        spec = self.settings.filter
+        result = analyse(np.stack(Y, axis=1), np.asarray(y),
+                         np.maximum(np.asarray(variance), 1e-12), method=spec.method,
+                         inflation=spec.inflation, relaxation=spec.relaxation, rng=self.rng)
+        analysed = result.apply(self.state.extract())
+        sigma = spec.model_error_bit_speed_rad_per_s
+        if sigma > 0:                         # additive inflation: centred, the mean unchanged
+            kicks = sigma * self.rng.standard_normal(analysed.shape[0])
+            analysed += np.outer(kicks - kicks.mean(), self.state.bit_speed_direction())
+        self.state.write(analysed)
+        # The smoother step: predictions still to be compared with late samples.
+        self._predicted = np.einsum('ij,tjc->tic', result.transform, self._predicted)
+        self.analyses += 1
+        record = self._summary(now, result)
+        self.history.append(record)
+        return record
+
+    def _oldest(self) -> float:
+        finite = self._times[np.isfinite(self._times)]
+        return float(finite.min()) if finite.size else math.nan
+
+    def germ_entries(self) -> np.ndarray:
+        """(N, 3): G11, G12, G22 of the analysed members' germs."""
+        germs = self.state.germs()
+        return np.stack([germs[:, 0, 0], germs[:, 0, 1], germs[:, 1, 1]], axis=1)
+
+    def _summary(self, time_s: float, result) -> AnalysisRecord:
+        if self.state.parameters == 'germ':
+            g = self.germ_entries()
+            mean = tuple(map(float, g.mean(axis=0)))
+            low, high = np.percentile(g, BOUNDS_PERCENT, axis=0)
+            lower, upper = tuple(map(float, low)), tuple(map(float, high))
+        else:
+            mean = lower = upper = (math.nan,) * 3
+        return AnalysisRecord(time_s=float(time_s), nis=float(result.nis),
+                              measurements=result.measurements, germ_mean=mean,
+                              germ_lower=lower, germ_upper=upper)
