@@ -17,6 +17,8 @@ deviation hypot(noise_std, noise_relative |value|).
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from drill_twin.assimilation.settings import SENSOR_OF, AssimilationConfig
@@ -67,3 +69,64 @@ def read(settings: AssimilationConfig, channel: str, value, rng: np.random.Gener
     spec = settings.channel(channel)
     value = np.asarray(value, dtype=float)
     return value + spec.bias + spec.std(value) * rng.standard_normal(value.shape)
+
+
+SENSOR_JOINTS = {
+    'top_drive': (('top_drive', {'velocity': 'top_speed', 'effort': 'top_torque'}),),
+    'hook': (('hook', {'position': 'block_position', 'effort': 'hook_load'}),),
+    'downhole': (('bit_rotation', {'velocity': 'bit_speed', 'effort': 'torque_on_bit'}),
+                 ('bit_axial', {'effort': 'weight_on_bit'})),
+}
+"""
+A sensor's sensor_msgs/JointState layout: its joints in order, and which field of each joint
+carries which channel (a field no channel uses is NaN). The rig emulator writes it, the log
+reader and the twin's subscriptions read it.
+"""
+JOINT_FIELDS = ('position', 'velocity', 'effort')
+
+
+def joint_state_fields(sensor: str, values: dict) -> tuple[list, list, list, list]:
+    """
+    (names, position, velocity, effort) of a sensor's JointState for channel ``values``.
+
+    A field that carries no channel, or a channel missing from ``values``, is NaN (a field is
+    left empty when no joint of the sensor uses it).
+    """
+    joints = SENSOR_JOINTS[sensor]
+    names = [name for name, _ in joints]
+    columns = []
+    for field in JOINT_FIELDS:
+        if not any(field in carried for _, carried in joints):
+            columns.append([])
+            continue
+        columns.append([float(values.get(carried[field], math.nan)) if field in carried
+                        else math.nan for _, carried in joints])
+    return (names, *columns)
+
+
+def values_from_joint_state(sensor: str, names, position, velocity, effort) -> dict:
+    """
+    {channel: value} a sensor's JointState carries (the channels it has; NaN ones included).
+
+    ``names``: the joints' names, or None to take the joints in the layout's order (a reader
+    that skips the names). Raises ValueError naming what is missing.
+    """
+    joints = SENSOR_JOINTS[sensor]
+    fields = dict(zip(JOINT_FIELDS, (position, velocity, effort)))
+    values = {}
+    for order, (joint, carried) in enumerate(joints):
+        if names is None:
+            index = order
+        elif joint in names:
+            index = list(names).index(joint)
+        else:
+            continue
+        for field, channel in carried.items():
+            if index < len(fields[field]):
+                values[channel] = float(fields[field][index])
+    if not values:
+        expected = '; '.join(f"joint '{joint}' " + ', '.join(carried)
+                             for joint, carried in joints)
+        raise ValueError(f'a {sensor} message carries none of its measurements (expected '
+                         f'{expected})')
+    return values

@@ -34,7 +34,6 @@ from drill_twin.cli.progress import ProgressBar
 TRUTH_BIT = '/rig/truth/bit_state'
 TRUTH_HOLE = '/rig/truth/hole_depth'
 METADATA = 'drill_twin_rig'
-NOT_MEASURED = float('nan')
 
 
 def add_parser(subparsers) -> None:
@@ -120,6 +119,7 @@ def _ns(seconds: float) -> int:
 def write_rig_log(path, log, settings, metadata: dict[str, str]) -> None:
     """Write a RigLog (see the module docstring for the layout)."""
     from drill_twin import interface as itf
+    from drill_twin.assimilation.measurements import joint_state_fields
     from drill_twin.recording.mcap_log import McapLog
     from drill_twin.recording.message_types import import_message_class
 
@@ -141,16 +141,8 @@ def write_rig_log(path, log, settings, metadata: dict[str, str]) -> None:
         topic = getattr(settings.sensors, name).topic
         v = samples.values
         for k, (stamp, arrival) in enumerate(zip(samples.stamp_s, samples.arrival_s)):
-            t = _ns(stamp)
-            if name == 'top_drive':
-                message = state(t, ['top_drive'], [], [v['top_speed'][k]], [v['top_torque'][k]])
-            elif name == 'hook':
-                message = state(t, ['hook'], [v['block_position'][k]], [], [v['hook_load'][k]])
-            else:
-                message = state(t, ['bit_rotation', 'bit_axial'], [],
-                                [v['bit_speed'][k], NOT_MEASURED],
-                                [v['torque_on_bit'][k], v['weight_on_bit'][k]])
-            messages.append((_ns(arrival), topic, message))
+            fields = joint_state_fields(name, {c: v[c][k] for c in v})
+            messages.append((_ns(arrival), topic, state(_ns(stamp), *fields)))
     for topic, commands in ((itf.CMD_TOP_DRIVE_SPEED, log.speed_commands),
                             (itf.CMD_HOOK_LOAD, log.hook_commands)):
         for time_s, value in commands:
@@ -186,6 +178,7 @@ def read_rig_log(path, settings):
     Raises UsageError naming the problem (one line).
     """
     from drill_twin import interface as itf
+    from drill_twin.assimilation.measurements import values_from_joint_state
     from drill_twin.assimilation.rig_log import RigLog, SensorSamples, Truth
     from drill_twin.recording import cdr
     from drill_twin.recording.reader import iter_raw, read_metadata
@@ -228,17 +221,9 @@ def read_rig_log(path, settings):
         stamp = np.array([i[0] for i in items]) * 1e-9
         arrival = np.array([i[1] for i in items]) * 1e-9
         try:
-            if name == 'top_drive':
-                values = {'top_speed': [i[3][0] for i in items],
-                          'top_torque': [i[4][0] for i in items]}
-            elif name == 'hook':
-                values = {'block_position': [i[2][0] for i in items],
-                          'hook_load': [i[4][0] for i in items]}
-            else:
-                values = {'bit_speed': [i[3][0] for i in items],
-                          'torque_on_bit': [i[4][0] for i in items],
-                          'weight_on_bit': [i[4][1] for i in items]}
-        except IndexError:
+            read = [values_from_joint_state(name, None, *i[2:]) for i in items]
+            values = {c: [r[c] for r in read] for c in read[0]}
+        except (ValueError, KeyError):
             raise UsageError(f'{path}: {name} messages lack their fields (see drill-twin rig '
                              '--help for the layout)') from None
         sensors[name] = SensorSamples(stamp, arrival,
