@@ -107,6 +107,10 @@ def driller_topic(wits_name: str) -> str:
 ENSEMBLE_MEAN = '/drill_twin/ensemble/bit_state/mean'        # sensor_msgs/msg/JointState
 ENSEMBLE_LOWER = '/drill_twin/ensemble/bit_state/lower'      # 2.5 % quantile, JointState
 ENSEMBLE_UPPER = '/drill_twin/ensemble/bit_state/upper'      # 97.5 % quantile, JointState
+ASSIMILATION_PREFIX = '/drill_twin/assimilation'
+ASSIMILATION_GERM_MEAN = ASSIMILATION_PREFIX + '/germ/mean'    # std_msgs/Float64MultiArray
+ASSIMILATION_GERM_LOWER = ASSIMILATION_PREFIX + '/germ/lower'  # [G11, G12, G22], 2.5 %
+ASSIMILATION_GERM_UPPER = ASSIMILATION_PREFIX + '/germ/upper'  # 97.5 %
 DIAGNOSTICS = '/diagnostics'                                 # diagnostic_msgs/msg/DiagnosticArray
 CLOCK = '/clock'                                             # rosgraph_msgs/msg/Clock
 TF = '/tf'                                                   # tf2_msgs/msg/TFMessage
@@ -198,6 +202,9 @@ DIAGNOSTICS_QOS = QosSpec()
 CLOCK_QOS = QosSpec(reliability='best_effort', depth=1)
 """/clock as the twin publishes it (fast mode) and subscribes to it (use_sim_time): best
 effort, so that a subscription matches reliable and best-effort clock publishers alike."""
+MEASUREMENT_QOS = QosSpec(reliability='best_effort', depth=100)
+"""The rig's sensor subscriptions (assimilation): best effort, so that they match reliable and
+best-effort sensor publishers alike; keep last 100 (a few ticks of several sensors)."""
 TF_QOS = QosSpec(depth=100)
 """/tf as tf2's broadcaster offers it: reliable, volatile, keep last 100."""
 TF_STATIC_QOS = QosSpec(durability='transient_local', depth=1)

@@ -21,11 +21,12 @@ import json
 import math
 from pathlib import Path
 
+from drill_twin import interface as itf
 from drill_twin.cli.common import UsageError, add_config_arguments, blamed
 from drill_twin.cli.progress import ProgressBar
 from drill_twin.cli.rig import TRUTH_BIT, add_assimilation_argument, read_rig_log, split_settings
 
-PREFIX = '/drill_twin/assimilation'
+PREFIX = itf.ASSIMILATION_PREFIX
 SUMMARY_KEYS = ('bit_speed_rms_error_rad_per_s', 'open_loop_bit_speed_rms_error_rad_per_s',
                 'bit_speed_coverage_95')
 
@@ -114,7 +115,6 @@ def run(args: argparse.Namespace) -> int:
 
 def write_estimate(path, estimate, log, method: str = 'student_t') -> None:
     """EST.mcap (module docstring)."""
-    from drill_twin import interface as itf
     from drill_twin.recording.mcap_log import McapLog
     from drill_twin.recording.message_types import import_message_class
 

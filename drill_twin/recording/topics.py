@@ -40,14 +40,15 @@ class TopicSpec(NamedTuple):
     qos: QosSpec
 
 
-def twin_topics(stations_m: Iterable[float] = (), *, tf: bool = False
-                ) -> dict[str, TopicSpec]:
+def twin_topics(stations_m: Iterable[float] = (), *, tf: bool = False,
+                measurement_topics: Iterable[str] = ()) -> dict[str, TopicSpec]:
     """
     List every topic the twin publishes or subscribes.
 
     :param stations_m: depths (m) of the measurement stations (one IMU and one
         displacement topic each).
     :param tf: include /tf and /tf_static (published where tf2_msgs is installed).
+    :param measurement_topics: the rig's sensor topics the twin assimilates (JointState).
     """
     state, diagnostics, clock = itf.STATE_QOS, itf.DIAGNOSTICS_QOS, itf.CLOCK_QOS
     result = {command: TopicSpec(STRING if command in itf.MODE_COMMANDS else FLOAT64, state)
@@ -69,6 +70,9 @@ def twin_topics(stations_m: Iterable[float] = (), *, tf: bool = False
         itf.ENSEMBLE_MEAN: TopicSpec(JOINT_STATE, state),
         itf.ENSEMBLE_LOWER: TopicSpec(JOINT_STATE, state),
         itf.ENSEMBLE_UPPER: TopicSpec(JOINT_STATE, state),
+        itf.ASSIMILATION_GERM_MEAN: TopicSpec(FLOAT64_MULTI_ARRAY, state),
+        itf.ASSIMILATION_GERM_LOWER: TopicSpec(FLOAT64_MULTI_ARRAY, state),
+        itf.ASSIMILATION_GERM_UPPER: TopicSpec(FLOAT64_MULTI_ARRAY, state),
         itf.DIAGNOSTICS: TopicSpec(DIAGNOSTIC_ARRAY, diagnostics),
         itf.CLOCK: TopicSpec(CLOCK, clock),
         itf.ROSOUT: TopicSpec(LOG, ROSOUT_QOS),
@@ -76,6 +80,8 @@ def twin_topics(stations_m: Iterable[float] = (), *, tf: bool = False
     for x_m in stations_m:
         result[itf.vibration_imu_topic(x_m)] = TopicSpec(IMU, state)
         result[itf.vibration_displacement_topic(x_m)] = TopicSpec(VECTOR3_STAMPED, state)
+    for topic in measurement_topics:
+        result[topic] = TopicSpec(JOINT_STATE, state)
     if tf:
         result[itf.TF] = TopicSpec(TF_MESSAGE, itf.TF_QOS)
         result[itf.TF_STATIC] = TopicSpec(TF_MESSAGE, itf.TF_STATIC_QOS)

@@ -13,7 +13,7 @@ from pathlib import Path
 import yaml
 
 from drill_twin import __version__
-from drill_twin.config import load_config
+from drill_twin.config import ConfigError, load_config
 from drill_twin.config.loader import config_to_dict
 from drill_twin.recording.log_metadata import TwinLogMetadata
 from drill_twin.recording.twin_log import TwinLog
@@ -39,8 +39,29 @@ def build_engine(params: TwinParameters) -> TwinEngine:
     return TwinEngine(config,
                       EnsembleSettings(members=params.ensemble_members,
                                        dispersion=params.ensemble_dispersion, seed=params.seed,
-                                       separate_process=params.ensemble_process),
+                                       separate_process=params.ensemble_process,
+                                       assimilation=assimilation_settings(params)),
                       command_limits(params), kpi_window_s=params.kpi_window_s)
+
+
+def assimilation_settings(params: TwinParameters):
+    """
+    Return the ensemble filter's settings the parameters ask for, or None (assimilation off).
+
+    Raises ConfigError naming the file, key or parameter at fault.
+    """
+    if not params.assimilation_enabled:
+        return None
+    from drill_twin.assimilation.settings import load_assimilation
+
+    if params.ensemble_members < 2:
+        raise ConfigError('parameters', 'ensemble_members', f'assimilation needs at least 2 '
+                          f'ensemble members, got {params.ensemble_members}')
+    for item in params.assimilation_overrides:
+        if not item.startswith('assimilation.'):
+            raise ConfigError('assimilation_overrides', item, 'expected assimilation.KEY=VALUE')
+    return load_assimilation(params.assimilation_config or None,
+                             list(params.assimilation_overrides))
 
 
 def log_metadata(params: TwinParameters, engine: TwinEngine, *, epoch_ns: int, substeps: int,
@@ -67,14 +88,15 @@ def new_log_path(log_dir: str | Path) -> Path:
 
 
 def open_log(path: Path, params: TwinParameters, stations_m, metadata: TwinLogMetadata, *,
-             tf: bool = False) -> TwinLog:
+             tf: bool = False, measurement_topics=()) -> TwinLog:
     """
-    Open the run's log, the rosbag2 bag ``path`` (with /tf and /tf_static if ``tf``).
+    Open the run's log, the rosbag2 bag ``path`` (with /tf and /tf_static if ``tf``, and the
+    rig's sensor topics the twin assimilates).
 
     Raises OSError.
     """
-    return TwinLog(path, stations_m, metadata,
-                   split_duration_s=params.log_split_s, tf=tf)
+    return TwinLog(path, stations_m, metadata, split_duration_s=params.log_split_s, tf=tf,
+                   measurement_topics=measurement_topics)
 
 
 def contact_node_depths_m(config) -> list[float]:

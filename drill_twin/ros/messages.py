@@ -17,7 +17,8 @@ from geometry_msgs.msg import Transform, TransformStamped, Vector3Stamped, Wrenc
 from rcl_interfaces.msg import Log
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState
-from std_msgs.msg import Float64, Float64MultiArray, Header, MultiArrayDimension, String
+from std_msgs.msg import (Float64, Float64MultiArray, Header, MultiArrayDimension,
+                           MultiArrayLayout, String)
 
 from drill_twin import interface as itf
 from drill_twin.twin.engine import BitState, TwinEvent, TwinSnapshot
@@ -315,6 +316,22 @@ def ensemble_messages(snapshot: TwinSnapshot, time_ns: int):
                                  (itf.ENSEMBLE_UPPER, snapshot.ensemble_upper))]
 
 
+def germ_messages(record, time_ns: int):
+    """
+    (topic, message) of an analysis's estimated germ: [G11, G12, G22] of the analysed
+    members' mean, 2.5 % and 97.5 % (std_msgs/Float64MultiArray, dimension 'G11,G12,G22').
+    """
+    def array(values):
+        return Float64MultiArray(
+            layout=MultiArrayLayout(dim=[MultiArrayDimension(label='G11,G12,G22', size=3,
+                                                             stride=3)]),
+            data=[float(v) for v in values])
+
+    return [(itf.ASSIMILATION_GERM_MEAN, array(record.germ_mean)),
+            (itf.ASSIMILATION_GERM_LOWER, array(record.germ_lower)),
+            (itf.ASSIMILATION_GERM_UPPER, array(record.germ_upper))]
+
+
 def clock(time_ns: int) -> Clock:
     """rosgraph_msgs/Clock at ``time_ns`` (ns)."""
     return Clock(clock=stamp(time_ns))
@@ -352,12 +369,13 @@ def log(level: str, text: str, name: str, time_ns: int) -> Log:
                file='', function='', line=0)
 
 
-def publications(stations_m, *, ensemble: bool, clock: bool, tf: bool) -> dict:
+def publications(stations_m, *, ensemble: bool, clock: bool, tf: bool,
+                 assimilation: bool = False) -> dict:
     """
     Map every topic the twin publishes (but /rosout) to its (message class, QosSpec).
 
-    The ensemble topics with an ensemble, /clock in fast mode, /tf and /tf_static where
-    tf2_msgs is installed.
+    The ensemble topics with an ensemble, the estimated germ with assimilation, /clock in fast
+    mode, /tf and /tf_static where tf2_msgs is installed.
     """
     state = itf.STATE_QOS
     topics = {itf.BIT_STATE: (JointState, state), itf.BIT_WRENCH: (WrenchStamped, state),
@@ -373,6 +391,10 @@ def publications(stations_m, *, ensemble: bool, clock: bool, tf: bool) -> dict:
     if ensemble:
         for topic in (itf.ENSEMBLE_MEAN, itf.ENSEMBLE_LOWER, itf.ENSEMBLE_UPPER):
             topics[topic] = (JointState, state)
+    if assimilation:
+        for topic in (itf.ASSIMILATION_GERM_MEAN, itf.ASSIMILATION_GERM_LOWER,
+                      itf.ASSIMILATION_GERM_UPPER):
+            topics[topic] = (Float64MultiArray, state)
     for x_m in stations_m:
         topics[itf.vibration_imu_topic(x_m)] = (Imu, state)
         topics[itf.vibration_displacement_topic(x_m)] = (Vector3Stamped, state)

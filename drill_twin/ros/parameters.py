@@ -85,6 +85,18 @@ PARAMETERS = (
                   low=0.0, high=1e8),
     ParameterSpec('top_drive_torque_limit_max_nm', 500.0e3, 'largest accepted motor torque '
                   'limit command of the dynamic top drive (N m)', safe=True, low=0.0, high=1e7),
+    ParameterSpec('assimilation_enabled', False, 'correct the ensemble with the rig\'s '
+                  'measurements (an ensemble Kalman filter, docs/ASSIMILATION.md): subscribe '
+                  'to the sensor topics of assimilation_config, publish the estimated bit-rock '
+                  'germ, the innovation statistics in the health report; the ensemble is the '
+                  'analysed one (needs ensemble_members >= 2)', safe=False),
+    ParameterSpec('assimilation_config', '', 'assimilation settings YAML: sensor topics, '
+                  'delays, noise levels, the filter (empty: config/assimilation.yaml; the '
+                  'ensemble\'s size, dispersion and seed are the node\'s parameters)',
+                  safe=False),
+    ParameterSpec('assimilation_overrides', (), 'assimilation.KEY=VALUE overrides of the '
+                  'assimilation settings, e.g. assimilation.filter.analysis_rate_hz=2.0',
+                  safe=False),
 )
 BY_NAME = {p.name: p for p in PARAMETERS}
 

@@ -42,11 +42,14 @@ from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock as ClockMessage
+from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, String
 from threadpoolctl import threadpool_limits
 
 from drill_twin import __version__
 from drill_twin import interface as itf
+from drill_twin.assimilation.measurements import SENSOR_CHANNELS, values_from_joint_state
+from drill_twin.assimilation.sequential import Sample
 from drill_twin.recording.qos import rclpy_qos_profile
 from drill_twin.ros import messages
 from drill_twin.ros.build import (build_engine, command_limits, log_metadata, new_log_path,
@@ -74,6 +77,13 @@ FROZEN_AFTER_S = 1.0
 WALL_CONTACT_EVENTS = ('impact', 'contact_end')
 """Events kept off the console (each one still on /diagnostics and in the log's /rosout); the
 impacts are counted there once a health period."""
+QUIET_EVENTS = WALL_CONTACT_EVENTS + ('measurement_rejected',)
+"""Events that can come tens of times a second (contacts, a rig sending bad samples): on
+/diagnostics and in the log's /rosout, counted on the console once a health period."""
+NIS_WARN_PER_MEASUREMENT = 4.0
+"""Mean normalised innovation squared per measured value over a health period above which
+health warns (expected 1 when the filter's statistics are right; 4 is far outside the spread
+of a period's few analyses)."""
 
 
 class StopFuture(Future):
@@ -205,6 +215,9 @@ class TwinNode(Node):
         self.monitor = HealthMonitor()
         self._latest_health = {}
         self._impacts_unreported = 0
+        self._refused_unreported = 0
+        self._innovations = []                  # (NIS, measured values) of the health period
+        self._measurements_at_report = 0
         self.commands_superseded = 0
         self.commands_dropped = 0
         self._pending_commands = {}             # topic -> value accepted since the last tick
@@ -222,6 +235,44 @@ class TwinNode(Node):
         if self.sim_time:
             self._clock_subscription = self.create_subscription(
                 ClockMessage, itf.CLOCK, self._on_clock, rclpy_qos_profile(itf.CLOCK_QOS))
+        self._measurements = {
+            topic: self.create_subscription(
+                JointState, topic, lambda message, t=topic, s=sensor:
+                self._on_measurement(s, t, message), rclpy_qos_profile(itf.MEASUREMENT_QOS))
+            for topic, sensor in self.measurement_topics.items()}
+
+    @property
+    def measurement_topics(self) -> dict[str, str]:
+        """{topic: sensor} of the rig's sensors the ensemble filter uses (empty: it is off)."""
+        settings = self.engine.ensemble.assimilation
+        if settings is None or not self.engine.assimilating:
+            return {}
+        used = settings.filter.measurements
+        return {getattr(settings.sensors, sensor).topic: sensor
+                for sensor, channels in SENSOR_CHANNELS.items()
+                if any(c in used for c in channels)}
+
+    def _on_measurement(self, sensor: str, topic: str, message: JointState) -> None:
+        """
+        Hand a rig sample to the ensemble filter (stamp: the header's, in the twin's clock;
+        an unset stamp is taken as now) and log it; a bad one is refused with a diagnostic.
+        """
+        now = self.twin_time_ns()
+        if self.log and self.pacer.started:
+            self.log.write(topic, message, now)
+        if not self.pacer.started:
+            self.engine.refuse_measurement(f'{topic}: received before the twin\'s clock '
+                                           f'started')
+            return
+        try:
+            values = values_from_joint_state(sensor, message.name, message.position,
+                                             message.velocity, message.effort)
+        except ValueError as error:
+            self.engine.refuse_measurement(f'{topic}: {error}')
+            return
+        stamp_ns = message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec
+        stamp_s = (stamp_ns - self.epoch_ns) * 1e-9 if stamp_ns else self.engine.time_s
+        self.engine.offer_measurement(Sample(sensor, stamp_s, values))
 
     def _start_line(self) -> str:
         p = self.params
@@ -230,15 +281,18 @@ class TwinNode(Node):
         where = (f'logging to {self.log.path}' if self.log else
                  'logging from the first /clock' if p.log_enabled and self.sim_time
                  else 'no log')
+        topics = self.measurement_topics
+        assimilating = (f', assimilating {", ".join(topics)}' if topics else '')
         return (f'drill_twin {__version__}: {self.engine.ensemble.members} ensemble members '
-                f'(delta {p.ensemble_dispersion:g}, seed {p.seed}), {self.substeps} steps of '
-                f'{self.engine.dt * 1e3:g} ms per tick, {pace}; {where}'
-                + ('' if self.tf_enabled else '; no TF (tf2_msgs is not installed)'))
+                f'(delta {p.ensemble_dispersion:g}, seed {p.seed}){assimilating}, '
+                f'{self.substeps} steps of {self.engine.dt * 1e3:g} ms per tick, {pace}; '
+                f'{where}' + ('' if self.tf_enabled else '; no TF (tf2_msgs is not installed)'))
 
     def _published_topics(self) -> dict:
         """{topic: (message class, QosSpec)} of the node's publishers."""
         return messages.publications(self.stations_m, ensemble=bool(self.engine.ensemble.members),
-                                     clock=self.fast, tf=self.tf_enabled)
+                                     clock=self.fast, tf=self.tf_enabled,
+                                     assimilation=self.engine.assimilating)
 
     def _open_log(self):
         """
@@ -251,7 +305,8 @@ class TwinNode(Node):
                                 substeps=self.substeps, fast=self.fast)
         path = new_log_path(self.params.log_dir)
         try:
-            return open_log(path, self.params, self.stations_m, metadata, tf=self.tf_enabled)
+            return open_log(path, self.params, self.stations_m, metadata, tf=self.tf_enabled,
+                            measurement_topics=self.measurement_topics)
         except OSError as error:
             text = f'cannot write the log {path}: {error.strerror or error}'
             if self.params.on_log_error == 'exit':
@@ -439,13 +494,21 @@ class TwinNode(Node):
     def _after_tick(self, snapshot, now: int) -> None:
         """Report the tick's events, notice a failed log, stop at ``duration_s``."""
         for event in snapshot.events:
-            if event.kind in WALL_CONTACT_EVENTS:
+            if event.kind in QUIET_EVENTS:
                 # A whirling string hits the wall tens of times a second: every event goes to
                 # /diagnostics and the log's /rosout, the console gets a count a health period.
                 self._report(event.level, event.message, console=False)
                 self._impacts_unreported += event.kind == 'impact'
+                self._refused_unreported += event.kind == 'measurement_rejected'
             elif event.kind != 'command_rejected':              # already reported
                 self._report(event.level, event.message)
+        for record in snapshot.analyses:
+            self._innovations.append((record.nis, record.measurements))
+        if snapshot.analyses and (self.engine.ensemble.assimilation is not None):
+            record = snapshot.analyses[-1]
+            stamp = self.epoch_ns + int(round(record.time_s * 1e9))
+            for topic, message in messages.germ_messages(record, stamp):
+                self._publish(topic, message, now)
         if self.log and not self.log.open:          # a write failed (disk full, ...)
             self._on_log_failure(now)
             if self.done.done():                    # on_log_error: exit
@@ -501,6 +564,11 @@ class TwinNode(Node):
             self.get_logger().warning(
                 f'{impacts} borehole impact{"s" if impacts > 1 else ""} since the last health '
                 f'report (each one on {itf.DIAGNOSTICS} and in the log)')
+        refused, self._refused_unreported = self._refused_unreported, 0
+        if refused:
+            self.get_logger().warning(
+                f'{refused} measurement sample{"s" if refused > 1 else ""} refused since the '
+                f'last health report (each one, with why, on {itf.DIAGNOSTICS} and in the log)')
         values = self._health_values()
         counters = dict(self._latest_health, commands_dropped=self.commands_dropped)
         report = self.monitor.report(counters, values)
@@ -541,6 +609,34 @@ class TwinNode(Node):
                     'ensemble_resets', 'retries', 'ensemble_members_touching_wall',
                     'ensemble_members_lifted_off'):
             values[key] = h.get(key, 0)
+        if self.measurement_topics:
+            values.update(self._assimilation_values(h))
+        return values
+
+    def _assimilation_values(self, h: dict) -> dict:
+        """The filter's figures of the period; note missing samples and large innovations."""
+        innovations, self._innovations = self._innovations, []
+        received = self.engine.measurements_received
+        new, self._measurements_at_report = (received - self._measurements_at_report,
+                                             received)
+        values = {'assimilation_analyses': len(innovations),
+                  'measurements_received': received,
+                  'measurements_used': h.get('measurements_used', 0),
+                  'measurements_refused': h.get('measurements_refused', 0)}
+        if innovations:
+            nis = sum(n for n, _ in innovations) / max(sum(m for _, m in innovations), 1)
+            values['nis_per_measurement'] = f'{nis:.3f}'
+            if nis > NIS_WARN_PER_MEASUREMENT:
+                self.monitor.note('warn', 'innovations', f'the rig\'s measurements disagree '
+                                  f'with the ensemble: normalised innovation squared {nis:.3g} '
+                                  f'per measured value (expected 1; the noise levels or the '
+                                  f'model are off)')
+        else:
+            values['nis_per_measurement'] = 'none'
+        if self.ticks and not new:
+            self.monitor.note('warn', 'measurements', 'no measurement sample arrived on '
+                              + ', '.join(self.measurement_topics) + ' in the period: the '
+                              'ensemble runs in open loop')
         return values
 
     def _note_clock(self, factor: float, lag_s: float) -> None:

@@ -9,7 +9,8 @@ and superseded commands, a lost ensemble, a log that stopped, lag) and turns the
 - ERROR: the mean model failed a step, broke a physical bound (the state guard), or was
   restarted; the ensemble was lost;
 - WARN: an ensemble member was restarted, a step needed sub-step retries, commands were
-  rejected or dropped, the log stopped or could not be written, the twin lags the wall clock;
+  rejected or dropped, measurement samples were refused (assimilation), the log stopped or
+  could not be written, the twin lags the wall clock;
 - OK ("running") only when nothing went wrong since the last report.
 
 A problem is reported in the period it happened and held (at its level, marked "in the
@@ -36,6 +37,8 @@ COUNTERS = {
     'rejected_commands': ('warn', '{n} command(s) rejected{detail}'),
     'commands_dropped': ('warn', '{n} command(s) dropped before they reached the twin '
                                  '(the subscription\'s queue overflowed)'),
+    'measurements_refused': ('warn', '{n} measurement sample(s) refused, the ensemble filter '
+                                     'went on without them{detail}'),
 }
 """Cumulative counters that make a report WARN or ERROR when they grow, and what it says."""
 
@@ -94,6 +97,8 @@ class HealthMonitor:
                 self.detail('mean_model_implausible_steps', event.values.get('reason', ''))
             elif event.kind == 'command_rejected':
                 self.detail('rejected_commands', event.message)
+            elif event.kind == 'measurement_rejected':
+                self.detail('measurements_refused', event.values.get('reason', event.message))
 
     def report(self, counters: dict, values: dict) -> HealthReport:
         """

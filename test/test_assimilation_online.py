@@ -1,0 +1,174 @@
+"""The twin's ensemble filter (issue 15): the engine takes rig samples as they arrive.
+
+The same :class:`~drill_twin.assimilation.sequential.SequentialFilter` runs offline over a log
+and in the twin's ensemble; these tests check that the twin, fed a rig's samples at their
+arrival times, analyses exactly what the offline filter does (in this process and in the
+worker process), that late and delayed samples are compared with the predictions at their
+stamps, and that bad samples are refused with a reason while the twin goes on.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from drill_twin.assimilation.offline import run_filter
+from drill_twin.assimilation.rig import run_rig
+from drill_twin.assimilation.sequential import Sample, SequentialFilter
+from drill_twin.assimilation.settings import load_assimilation
+from drill_twin.config import load_config
+from drill_twin.dynamics.simulator import Simulator
+from drill_twin.twin.engine import EnsembleSettings, TwinEngine
+from drill_twin.uncertainty.germ import germs_for_realizations
+
+SMALL = ['sections.drill_pipe.elements=8', 'sections.drill_collar.elements=4',
+         'reduced_basis.lateral_modes=6']
+DURATION_S = 2.0
+
+
+@pytest.fixture(scope='module')
+def config():
+    return load_config(None, SMALL)
+
+
+@pytest.fixture(scope='module')
+def settings():
+    """Surface torque and block position at 10 Hz, bit speed by mud pulse 0.5 s late at 2 Hz."""
+    return load_assimilation(None, [
+        'assimilation.filter.members=4',
+        'assimilation.filter.measurements=[top_torque,block_position,bit_speed]',
+        'assimilation.sensors.downhole.rate_hz=2.0',
+        'assimilation.sensors.downhole.delay_s=0.5'])
+
+
+@pytest.fixture(scope='module')
+def rig_log(config, settings):
+    return run_rig(config, settings, DURATION_S, germ=np.array([[1.1, 0.05], [0.05, 0.9]]))
+
+
+def _samples_by_arrival(log, channels):
+    """[(arrival s, Sample)] of the log, in the offline filter's order."""
+    from drill_twin.assimilation.offline import _sample
+    from drill_twin.assimilation.measurements import SENSOR_CHANNELS
+    return [(float(a), _sample(log, sensor, k, channels))
+            for a, sensor, k in sorted(
+                (float(a), sensor, k) for sensor, samples in log.sensors.items()
+                for k, a in enumerate(samples.arrival_s)
+                if any(c in channels for c in SENSOR_CHANNELS[sensor]))]
+
+
+@pytest.mark.parametrize('separate_process', [False, True])
+def test_the_twin_analyses_exactly_what_the_offline_filter_does(config, settings, rig_log,
+                                                                separate_process):
+    """
+    The engine, fed the log's samples as they arrive (one model step a tick), has the offline
+    filter's analysed members: the same bit speeds to the last bit, the same analyses.
+    """
+    spec = settings.filter
+    offline = run_filter(config, settings, rig_log).arrays()
+    engine = TwinEngine(config, EnsembleSettings(
+        members=spec.members, dispersion=spec.prior_dispersion, seed=spec.seed,
+        separate_process=separate_process, assimilation=settings))
+    try:
+        arrivals = _samples_by_arrival(rig_log, spec.measurements)
+        analyses, speeds, dt = [], {}, engine.dt
+        for _ in range(int(round(DURATION_S / dt)) + 1):
+            while arrivals and arrivals[0][0] <= engine.time_s + dt + 1e-9:
+                assert engine.offer_measurement(arrivals.pop(0)[1]) is None
+            snapshot = engine.advance(1)
+            analyses += snapshot.analyses
+            ensemble = engine._ensemble_latest
+            speeds[round(ensemble.time_s / dt)] = ensemble.bit[:, 4].copy()
+    finally:
+        engine.close()
+    compared = 0
+    for time_s, filtered in zip(offline['time_s'], offline['filtered']):
+        if round(time_s / dt) in speeds:
+            np.testing.assert_array_equal(speeds[round(time_s / dt)], filtered)
+            compared += 1
+    assert compared >= 0.9 * DURATION_S * 20                       # the truth's 20 Hz
+    assert len(analyses) == offline['nis'].size >= 8
+    np.testing.assert_array_equal([a.nis for a in analyses], offline['nis'])
+    np.testing.assert_array_equal([a.germ_mean for a in analyses], offline['germ_mean'])
+    assert snapshot.health['measurements_used'] > 0
+    assert snapshot.health['measurements_refused'] == 0
+
+
+def _filter(config, settings, members=4):
+    germs = germs_for_realizations(0.2, 0, range(members))
+    simulator = Simulator(config, members, germs=germs)
+    return simulator, SequentialFilter(simulator, members, settings, np.random.default_rng(0))
+
+
+def test_a_late_sample_is_compared_with_the_prediction_at_its_stamp(config, settings):
+    """
+    A sample taken at t and delivered 0.3 s later (off the step grid: interpolated) is
+    compared with what the members predicted at t, and a sample equal to that prediction's
+    mean, at a tiny noise, leaves the mean there: an innovation of zero.
+    """
+    simulator, sequential = _filter(config, settings)
+    dt = simulator.dt
+    stamp = 0.1 + 0.5 * dt                           # halfway between two steps
+    recorded = {}
+    for _ in range(int(round(0.4 / dt))):
+        simulator.step()
+        o = simulator.observe()
+        recorded[round(o.time_s / dt)] = o.top_torque_nm.copy()
+        sequential._record()
+    below, above = recorded[round((stamp - 0.5 * dt) / dt)], recorded[round((stamp + 0.5 * dt) / dt)]
+    predicted = 0.5 * (below + above)
+    np.testing.assert_allclose(sequential._prediction_at(stamp)[:, 0], predicted, rtol=1e-12)
+    assert sequential.offer(Sample('top_drive', stamp, {'top_torque': predicted.mean()})) is None
+    record = sequential._analyse_ready()
+    assert record is not None and record.measurements == 1
+    assert record.nis == pytest.approx(0.0, abs=1e-20)
+
+
+@pytest.mark.parametrize('sample, words', [
+    (Sample('top_drive', 0.0, {'top_torque': math.nan}), 'top_torque = nan is not finite'),
+    (Sample('top_drive', math.inf, {'top_torque': 1.0}), 'stamp inf is not finite'),
+    (Sample('mud_logger', 0.0, {'top_torque': 1.0}), "unknown sensor 'mud_logger'"),
+    (Sample('hook', 0.0, {'top_torque': 1.0}), "carries 'top_torque', not one of its"),
+    (Sample('top_drive', -50.0, {'top_torque': 1.0}), 'is older than the'),
+    (Sample('top_drive', 60.0, {'top_torque': 1.0}), 'ahead of the model'),
+])
+def test_a_bad_sample_is_refused_with_its_reason(config, settings, sample, words):
+    simulator, sequential = _filter(config, settings)
+    simulator.step()
+    problem = sequential.offer(sample)
+    assert problem is not None and words in problem
+    assert sequential.samples_refused == 1 and sequential.take_refusals() == [problem]
+    assert sequential._pending == []
+
+
+def test_the_engine_refuses_bad_samples_and_goes_on_in_open_loop(config, settings):
+    """
+    A refused sample is an event with its reason and a count in health; the ensemble goes on
+    (no analysis without samples); a twin without a filter refuses samples.
+    """
+    engine = TwinEngine(config, EnsembleSettings(members=4, dispersion=0.1,
+                                                 assimilation=settings))
+    try:
+        assert engine.offer_measurement(Sample('top_drive', 0.0, {'top_torque': math.nan}))
+        snapshot = engine.advance(2)
+        events = [e for e in snapshot.events if e.kind == 'measurement_rejected']
+        assert len(events) == 1 and 'not finite' in events[0].values['reason']
+        assert snapshot.health['measurements_refused'] == 1
+        for _ in range(int(0.5 / engine.dt)):
+            snapshot = engine.advance(1)
+            assert not snapshot.analyses
+        assert np.all(np.isfinite(engine._ensemble_latest.bit))
+    finally:
+        engine.close()
+    engine = TwinEngine(config, EnsembleSettings(members=4))
+    try:
+        assert 'does not assimilate' in engine.offer_measurement(
+            Sample('top_drive', 0.0, {'top_torque': 1.0}))
+    finally:
+        engine.close()
+
+
+def test_an_ensemble_filter_needs_two_members(settings):
+    with pytest.raises(ValueError, match='assimilation needs >= 2'):
+        EnsembleSettings(members=1, assimilation=settings)
