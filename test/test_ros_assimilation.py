@@ -1,0 +1,146 @@
+"""The twin node assimilating a rig's measurements, over real rclpy and FastDDS (issue 15).
+
+A module of its own (its own ROS context): a probe publishes the rig's sensor messages
+(sensor_msgs/JointState, as docs/ASSIMILATION.md lays them out) to a fast twin whose ensemble
+is an ensemble Kalman filter, and hears what the twin publishes.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from test_ros_twin_node import ros, stamp_ns, twin_factory  # noqa: F401 (fixtures)
+
+from drill_twin import interface as itf
+
+
+def _values(status) -> dict:
+    return {kv.key: kv.value for kv in status.values}
+
+
+def _rig_publishers(twin):
+    from sensor_msgs.msg import JointState
+
+    from drill_twin.recording.qos import rclpy_qos_profile
+    publishers = {topic: twin.probe.create_publisher(JointState, topic,
+                                                     rclpy_qos_profile(itf.STATE_QOS))
+                  for topic in ('/rig/top_drive', '/rig/hook')}
+    twin.spin_until(lambda: all(p.get_subscription_count() for p in publishers.values()),
+                    'the twin subscribing to the rig')
+    return publishers
+
+
+def _reading(stamp, name, position=(), velocity=(), effort=()):
+    from sensor_msgs.msg import JointState
+    message = JointState(name=[name], position=list(position), velocity=list(velocity),
+                         effort=list(effort))
+    message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
+    return message
+
+
+def test_the_twin_assimilates_the_rigs_surface_measurements(twin_factory, tmp_path):  # noqa: F811
+    """
+    The rig's surface torque and block position (here the mean model's own, as a rig whose
+    string is the mean model would read them) are analysed: the estimated germ is published
+    with bounds after the first analyses, health reports the analyses, the NIS and the samples
+    used; the samples are in the log; a malformed message and a NaN reading are refused with
+    their reasons (WARN), and the twin goes on.
+    """
+    from diagnostic_msgs.msg import DiagnosticStatus
+
+    twin = twin_factory(ensemble_members=6, ensemble_dispersion=0.2, ensemble_process=False,
+                        assimilation_enabled=True, health_rate_hz=5.0, duration_s=0.0,
+                        log_dir=tmp_path / 'logs')
+    rig = _rig_publishers(twin)
+    assert set(twin.node.measurement_topics) == {'/rig/top_drive', '/rig/hook'}
+    sent = 0
+
+    def feed():
+        """Send the rig's reading of the latest top state heard (10 Hz of twin time)."""
+        nonlocal sent
+        tops = twin.received[itf.TOP_STATE]
+        if not tops or stamp_ns(tops[-1]) < (sent + 1) * 100_000_000:
+            return False
+        top = tops[-1]
+        sent = stamp_ns(top) // 100_000_000
+        torque, block = top.effort[0], top.position[1]
+        rig['/rig/top_drive'].publish(_reading(stamp_ns(top), 'top_drive',
+                                               velocity=[top.velocity[0]], effort=[torque]))
+        rig['/rig/hook'].publish(_reading(stamp_ns(top), 'hook', position=[block],
+                                          effort=[top.effort[1]]))
+        return False
+
+    twin.spin_until(lambda: feed() or len(twin.received[itf.ASSIMILATION_GERM_MEAN]) >= 5,
+                    'five estimated germs')
+    twin.node.timer.cancel()                        # the twin stands still: hear all it sent
+    for _ in range(20):
+        twin.executor.spin_once(timeout_sec=0.05)
+    mean = np.array([m.data for m in twin.received[itf.ASSIMILATION_GERM_MEAN]])
+    lower = np.array([m.data for m in twin.received[itf.ASSIMILATION_GERM_LOWER]])
+    upper = np.array([m.data for m in twin.received[itf.ASSIMILATION_GERM_UPPER]])
+    assert mean.shape[1] == 3 and np.all(np.isfinite(mean))
+    n = min(len(mean), len(lower), len(upper))
+    assert np.all(lower[:n] <= mean[:n] + 1e-12) and np.all(mean[:n] <= upper[:n] + 1e-12)
+    assert np.all(mean[:, [0, 2]] > 0)                                 # G11, G22 of an SPD germ
+    germ = twin.node.engine.ensemble_runner.simulator.integrator.germ
+    np.testing.assert_allclose(mean[-1], [germ[:, 0, 0].mean(), germ[:, 0, 1].mean(),
+                                          germ[:, 1, 1].mean()], rtol=1e-9)
+
+    def report(condition, what):
+        seen = len(twin.statuses('drill_twin: twin health'))
+        found = []
+
+        def check():
+            feed()
+            found[:] = [s for s in twin.statuses('drill_twin: twin health')[seen:]
+                        if condition(s)]
+            return bool(found)
+        twin.spin_until(check, what)
+        return found[0]
+
+    twin.node.timer.reset()
+    status = report(lambda s: int(_values(s).get('assimilation_analyses', 0)) > 0,
+                    'a report with analyses')
+    values = _values(status)
+    assert math.isfinite(float(values['nis_per_measurement']))
+    assert int(values['measurements_used']) > 0 and int(values['measurements_refused']) == 0
+
+    # A message without its joint, and a NaN torque: refused with why; the twin goes on.
+    now = twin.node.twin_time_ns()
+    rig['/rig/top_drive'].publish(_reading(now, 'kelly', velocity=[1.0], effort=[1.0]))
+    rig['/rig/top_drive'].publish(_reading(now, 'top_drive', velocity=[1.0],
+                                           effort=[math.nan]))
+    warn = report(lambda s: s.level == DiagnosticStatus.WARN
+                  and 'measurement sample(s) refused' in s.message, 'a WARN on the refusal')
+    refused = twin.statuses('drill_twin: measurement rejected')      # every event, with why
+    reasons = ' '.join(_values(s)['reason'] for s in refused)
+    assert 'carries none of its measurements' in reasons and 'is not finite' in reasons
+    assert all(s.level == DiagnosticStatus.WARN for s in refused)
+    assert int(_values(warn)['measurements_refused']) >= 1
+    before = twin.node.engine.time_s
+    twin.spin_until(lambda: feed() or twin.node.engine.time_s > before + 0.5, 'the twin going on')
+
+    # The rig's samples are in the twin's log, as received.
+    twin.node.close()
+    from drill_twin.recording.reader import iter_raw
+    logs = sorted((tmp_path / 'logs').glob('*/*.mcap'))
+    topics = {}
+    for path in logs:
+        for _, channel, _ in iter_raw(path):
+            topics[channel.topic] = topics.get(channel.topic, 0) + 1
+    assert topics.get('/rig/top_drive', 0) >= 5 and topics.get('/rig/hook', 0) >= 5
+    assert topics.get(itf.ASSIMILATION_GERM_MEAN, 0) >= 5
+
+
+def test_without_measurements_the_twin_says_it_runs_in_open_loop(twin_factory):  # noqa: F811
+    from diagnostic_msgs.msg import DiagnosticStatus
+
+    twin = twin_factory(ensemble_members=4, ensemble_process=False, assimilation_enabled=True,
+                        health_rate_hz=5.0, log_enabled=False)
+    seen = 1
+
+    def warned():
+        return [s for s in twin.statuses('drill_twin: twin health')[seen:]
+                if s.level == DiagnosticStatus.WARN and 'open loop' in s.message]
+    twin.spin_until(warned, 'a WARN saying the ensemble runs in open loop')
+    assert 'no measurement sample arrived on /rig/top_drive, /rig/hook' in warned()[0].message
