@@ -17,6 +17,7 @@ from typing import Any, Iterable, Iterator, NamedTuple
 import numpy as np
 
 from drill_twin import interface as itf
+from drill_twin.assimilation.sequential import AnalysisRecord
 from drill_twin.recording.log_metadata import RECORD_NAME
 from drill_twin.recording.mcap_log import McapLog
 from drill_twin.recording.topics import twin_topics
@@ -108,8 +109,8 @@ def synthetic_messages(duration_s: float = 10.0, rate_hz: float = 100.0,
     """
     Yield messages of every twin topic in time order.
 
-    State topics, KPIs, the ensemble and /clock come at ``rate_hz``; commands and an event
-    (/diagnostics) at 1 Hz; a /rosout line every 2 s.
+    State topics, KPIs, the ensemble and /clock come at ``rate_hz``; commands, an estimated
+    germ and an event (/diagnostics) at 1 Hz; a /rosout line every 2 s.
     """
     stations = [float(x) for x in stations_m]
     n_steps = int(round(duration_s * rate_hz))
@@ -130,6 +131,11 @@ def synthetic_messages(duration_s: float = 10.0, rate_hz: float = 100.0,
                     yield TimedMessage(topic, messages.command_message(topic, value), t_ns)
                 yield TimedMessage(itf.cmd_applied_topic(topic),
                                    messages.command_applied(topic, value, t_ns), t_ns)
+            analysis = AnalysisRecord(time_s=step / rate_hz, nis=1.0, measurements=2,
+                                      germ_mean=(1.0, 0.01 * step, 1.1),
+                                      germ_lower=(0.9, -0.1, 1.0), germ_upper=(1.1, 0.1, 1.2))
+            for topic, message in messages.germ_messages(analysis, t_ns):
+                yield TimedMessage(topic, message, t_ns)
         plan = messages.TickPlan(kpis=True, ensemble_stamp_ns=t_ns, clock=True)
         for topic, message in messages.tick_messages(snapshot, stations, t_ns, plan):
             yield TimedMessage(topic, message, t_ns)
