@@ -49,6 +49,8 @@ class Estimate:
     germ_lower: list = field(default_factory=list)
     germ_upper: list = field(default_factory=list)
     resets: int = 0
+    final_germs: np.ndarray | None = None
+    """(N, 2, 2) the analysed members' germs at the end of the log."""
 
     def add(self, record) -> None:
         """Keep an analysis (:class:`~drill_twin.assimilation.sequential.AnalysisRecord`)."""
@@ -115,6 +117,8 @@ def run_filter(config: DrillStringConfig, settings: AssimilationConfig, log: Rig
         if progress is not None and step % 200 == 0:
             progress(time, log.duration_s)
     estimate.resets = guarded.resets
+    if spec.parameters == 'germ':
+        estimate.final_germs = sequential.state.germs()
     return estimate
 
 
