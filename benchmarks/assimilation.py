@@ -115,6 +115,17 @@ def main() -> None:
     law['ensemble_tob_relative_error'] = law['ensemble_tob_nm'] / law['truth_tob_nm'] - 1
     law['prior_rop_relative_error'] = law['prior_rop_m_per_s'] / law['truth_rop_m_per_s'] - 1
     law['prior_tob_relative_error'] = law['prior_tob_nm'] / law['truth_tob_nm'] - 1
+    # What the twin drills: the hole's mean rate over the last third of the log, truth and
+    # ensembles (the truth oscillates: its law is never at its steady point).
+    window = a['time_s'] >= 2.0 * log.duration_s / 3.0
+    t_w = a['time_s'][window]
+    truth_hole = np.interp(t_w, log.truth.time_s, log.truth.hole_depth_m)
+    drilled = {'window_s': [float(t_w[0]), float(t_w[-1])],
+               'truth_rop_m_per_s': float(np.polyfit(t_w, truth_hole, 1)[0]),
+               'filtered_rop_m_per_s': float(np.polyfit(t_w, a['hole_depth_m'][window, 0], 1)[0]),
+               'open_loop_rop_m_per_s': float(np.polyfit(t_w, a['hole_depth_m'][window, 1],
+                                                         1)[0])}
+    law['drilled'] = drilled
     result = {'duration_s': log.duration_s, 'members': args.members,
               'truth_scale': args.scale, 'truth_delta': args.truth_delta,
               'torque_bias_nm': args.torque_bias, 'filter': repr(filter_settings.filter),
@@ -145,6 +156,11 @@ def main() -> None:
           f'{low * 1e3:.3f} ... {high * 1e3:.3f}), TOB {law["ensemble_tob_nm"]:.0f} N m '
           f'({100 * law["ensemble_tob_relative_error"]:+.1f} %); {law["members_not_drilling"]} '
           f'of {len(members)} do not drill there')
+    print(f'ROP drilled over {drilled["window_s"][0]:.0f}-{drilled["window_s"][1]:.0f} s (the '
+          f'hole\'s rate): truth {drilled["truth_rop_m_per_s"] * 1e3:.3f} mm/s, analysed members '
+          f'{drilled["filtered_rop_m_per_s"] * 1e3:.3f} '
+          f'({100 * (drilled["filtered_rop_m_per_s"] / drilled["truth_rop_m_per_s"] - 1):+.1f} %), '
+          f'open loop {drilled["open_loop_rop_m_per_s"] * 1e3:.3f}')
 
 
 def member_point(law: BitRockLaw, omega: float, wob: float, germ) -> tuple[float, float]:

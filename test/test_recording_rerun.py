@@ -185,6 +185,18 @@ def test_band_fills_from_lower_to_upper():
     assert set(band_style.names.as_arrow_array().to_pylist()) == {'95 % band'}
 
 
+def test_the_estimated_germ_is_sent_entry_by_entry():
+    rec = Capture()
+    mean = np.array([[1.0, 0.1, 1.2], [0.9, 0.0, 1.1]])
+    layout.send_germ(rec, [1.0, 2.0], mean, mean - 0.1, mean + 0.2)
+    for column, key in enumerate(('g11', 'g12', 'g22')):
+        assert np.allclose(np.ravel(rec.rows(f'ensemble/germ/{key}/mean')[1]), mean[:, column])
+        assert np.allclose(np.ravel(rec.rows(f'ensemble/germ/{key}/lower')[1]),
+                           mean[:, column] - 0.1)
+        assert np.allclose(np.ravel(rec.rows(f'ensemble/germ/{key}/upper')[1]),
+                           mean[:, column] + 0.2)
+
+
 def test_orbit_segments_and_wall():
     g = geometry()
     assert g.station_clearance_m == pytest.approx((0.15 - 0.0635, 0.15 - 0.0635))
@@ -272,6 +284,8 @@ def test_save_rrd_is_self_contained_with_blueprint(log_path, rerun_env, tmp_path
                            ('/top/hook_load', 'Scalars:scalars'),
                            ('/kpi/ssi', 'Scalars:scalars'),
                            ('/ensemble/rop/band', 'Scalars:scalars'),
+                           ('/ensemble/germ/g12/mean', 'Scalars:scalars'),
+                           ('/ensemble/germ/g22/upper', 'Scalars:scalars'),
                            ('/lateral/x600m/orbit', 'LineStrips2D:strips'),
                            ('/lateral/x1200m/pipe', 'Ellipses2D:centers'),
                            ('/lateral/x1200m/wall', 'Ellipses2D:half_sizes'),
@@ -289,6 +303,7 @@ def test_save_rrd_is_self_contained_with_blueprint(log_path, rerun_env, tmp_path
                              env=rerun_env, capture_output=True, text=True, check=True,
                              timeout=60).stdout
     for text in ('run time', 'Orbit at 1200 m', 'Bit speed (rpm)', 'Surface torque (kN·m)',
+                 'Estimated bit-rock germ (assimilation)',
                  'Wall contact force (kN) vs depth (m)', layout.APPLICATION_ID):
         assert text in verbose, text
     assert 'message_log_time' not in verbose              # no wall-clock timeline

@@ -34,7 +34,8 @@ class Estimate:
 
     The bit speeds are at the truth's times (or at the analysis times without a truth).
     time_s (k,); filtered and open_loop: (k, N) the members' bit speeds (rad/s), summarised
-    by :meth:`bounds`; analysis_time_s (a,), nis (a,), measurements (a,) per analysis;
+    by :meth:`bounds`; hole_depth_m (k, 2): the analysed and the open-loop members' mean hole
+    depth (m); analysis_time_s (a,), nis (a,), measurements (a,) per analysis;
     germ_mean and germ_lower/upper (a, 3): G11, G12, G22 of the analysed members after each
     analysis.
     """
@@ -42,6 +43,7 @@ class Estimate:
     time_s: list = field(default_factory=list)
     filtered: list = field(default_factory=list)
     open_loop: list = field(default_factory=list)
+    hole_depth_m: list = field(default_factory=list)
     analysis_time_s: list = field(default_factory=list)
     nis: list = field(default_factory=list)
     measurements: list = field(default_factory=list)
@@ -68,7 +70,7 @@ class Estimate:
 
     def arrays(self) -> dict[str, np.ndarray]:
         return {name: np.asarray(getattr(self, name), dtype=float) for name in (
-            'time_s', 'filtered', 'open_loop', 'analysis_time_s', 'nis', 'measurements',
+            'time_s', 'filtered', 'open_loop', 'hole_depth_m', 'analysis_time_s', 'nis', 'measurements',
             'germ_mean', 'germ_lower', 'germ_upper')}
 
 
@@ -114,6 +116,8 @@ def run_filter(config: DrillStringConfig, settings: AssimilationConfig, log: Rig
             estimate.time_s.append(time)
             estimate.filtered.append(speed[:n].copy())
             estimate.open_loop.append(speed[n:].copy())
+            hole = sim.hole_depth_m
+            estimate.hole_depth_m.append((float(hole[:n].mean()), float(hole[n:].mean())))
         if progress is not None and step % 200 == 0:
             progress(time, log.duration_s)
     estimate.resets = guarded.resets

@@ -12,7 +12,8 @@ the ROS topics carry the paper's signs (negative).  The ``send_*`` functions tak
 of SI values (one row per sample) and are the one place where units are converted and
 entities named; both views call them.
 
-Entities (under ``/``): ``bit/*``, ``top/*``, ``cmd/*``, ``kpi/*``, ``ensemble/<q>/{band,
+Entities (under ``/``): ``bit/*``, ``top/*``, ``cmd/*``, ``kpi/*``, ``ensemble/germ/<g>/{mean,
+lower,upper}`` (assimilation), ``ensemble/<q>/{band,
 mean,model}``, ``lateral/<station>/*`` (orbit, pipe, wall, radial deflection),
 ``along/*`` (contact force and deflection along the depth), ``diagnostics/*``, ``rosout``.
 
@@ -142,6 +143,8 @@ ENSEMBLE_QUANTITIES = {
     'rop': ('ROP', 'm/h'),
     'wob': ('WOB', 'kN'),
 }
+GERM_ENTRIES = {'g11': ('G11', BLUE), 'g12': ('G12', ORANGE), 'g22': ('G22', GREEN)}
+"""The estimated bit-rock germ's entries (assimilation), in message order, and their colours."""
 
 
 def log_styles(recording, geometry: StringGeometry) -> None:
@@ -162,6 +165,12 @@ def log_styles(recording, geometry: StringGeometry) -> None:
             names='ensemble mean', colors=BLUE, widths=2.5), static=True)
         recording.log(f'ensemble/{key}/model', rr.SeriesLines(
             names='mean model', colors=ORANGE, widths=1.2), static=True)
+    for key, (name, colour) in GERM_ENTRIES.items():
+        recording.log(f'ensemble/germ/{key}/mean', rr.SeriesLines(
+            names=f'{name} (mean)', colors=colour, widths=2.0), static=True)
+        for bound in ('lower', 'upper'):
+            recording.log(f'ensemble/germ/{key}/{bound}', rr.SeriesLines(
+                names=f'{name} (95 %)', colors=colour, widths=0.8), static=True)
     for x_m, outer_m, gap_m in zip(geometry.stations_m, geometry.station_outer_radius_m,
                                    geometry.station_clearance_m):
         _log_cross_section(recording, station_entity(x_m), geometry.borehole_radius_m,
@@ -280,6 +289,18 @@ def send_ensemble(recording, t_s, mean, lower, upper) -> None:
         low, high = lows[key][:, None], highs[key][:, None]
         _scalars(recording, f'ensemble/{key}/band', t_s, low + fractions * (high - low))
         _scalars(recording, f'ensemble/{key}/mean', t_s, means[key])
+
+
+def send_germ(recording, t_s, mean, lower, upper) -> None:
+    """
+    Send the estimated bit-rock germ of the analyses (assimilation).
+
+    Arrays (n, 3): G11, G12, G22 of the analysed members' mean, 2.5 % and 97.5 %.
+    """
+    for column, key in enumerate(GERM_ENTRIES):
+        for bound, values in (('mean', mean), ('lower', lower), ('upper', upper)):
+            _scalars(recording, f'ensemble/germ/{key}/{bound}', t_s,
+                     np.asarray(values, dtype=float)[:, column])
 
 
 def send_ensemble_model(recording, t_s, rop_m_per_s, weight_on_bit_n, speed_rad_per_s) -> None:
@@ -532,7 +553,7 @@ def _lateral_tab(geometry: StringGeometry):
         row_shares=[3, 1], name=TAB_TITLES['lateral'])
 
 
-def _ensemble_tab():
+def _ensemble_tab(assimilation: bool = False):
     import rerun.blueprint as rrb
 
     views = []
@@ -540,6 +561,12 @@ def _ensemble_tab():
         views.append(_series(
             f'{title} ({unit}): ensemble mean (blue), 95 % band (shaded), mean model (orange)',
             [f'ensemble/{key}/band', f'ensemble/{key}/model', f'ensemble/{key}/mean']))
+    if assimilation:
+        views.append(_series(
+            'Estimated bit-rock germ (assimilation): G11 (blue), G12 (orange), G22 (green); '
+            'mean and 95 % of the analysed members (thin); 1 is the paper\'s mean law',
+            [f'ensemble/germ/{key}/{b}' for key in GERM_ENTRIES
+             for b in ('lower', 'upper', 'mean')]))
     return rrb.Vertical(*views, name=TAB_TITLES['ensemble'])
 
 
@@ -562,17 +589,19 @@ def _diagnostics_tab():
 
 
 def twin_blueprint(geometry: StringGeometry, *, active_tab: int | str = 0,
-                   follow: bool = True):
+                   follow: bool = True, assimilation: bool = False):
     """
     Build the rerun blueprint of the twin's views (tabs :data:`TABS`).
 
     :param active_tab: the tab shown first (index or name).
     :param follow: start with the time cursor following the newest data (at the end of a
         recorded run, moving with a live one).
+    :param assimilation: the ensemble tab shows the estimated germ too.
     """
     import rerun.blueprint as rrb
 
-    tabs = rrb.Tabs(_bit_tab(), _driller_tab(), _lateral_tab(geometry), _ensemble_tab(),
+    tabs = rrb.Tabs(_bit_tab(), _driller_tab(), _lateral_tab(geometry),
+                    _ensemble_tab(assimilation),
                     _diagnostics_tab(), active_tab=tab_index(active_tab))
     return rrb.Blueprint(tabs,
                          rrb.TimePanel(timeline=TIMELINE, state='collapsed',

@@ -27,6 +27,9 @@ from drill_twin.recording import rerun_layout as layout
 
 PROFILE_RATE_HZ = 10.0
 """Samples per second of run time for the along-the-depth bar charts."""
+GERM_TOPICS = (itf.ASSIMILATION_GERM_MEAN, itf.ASSIMILATION_GERM_LOWER,
+               itf.ASSIMILATION_GERM_UPPER)
+"""The estimated germ (assimilation): mean, 2.5 % and 97.5 % of [G11, G12, G22]."""
 HEALTH_NAME = 'drill_twin: twin health'
 
 
@@ -114,6 +117,8 @@ def read_run(files: Sequence[Path], stations_m: Sequence[float] | None = None) -
                 stamp, position, velocity, effort = cdr.joint_state(data)
                 run.rows['top'].append(((stamp - epoch) * 1e-9, velocity[0], effort[0],
                                         effort[1]))
+            elif topic in GERM_TOPICS:
+                run.rows[topic].append((log_s, *cdr.float64_multi_array(data)))
             elif topic in (itf.ENSEMBLE_MEAN, itf.ENSEMBLE_LOWER, itf.ENSEMBLE_UPPER):
                 stamp, position, velocity, effort = cdr.joint_state(data)
                 run.rows[topic].append(((stamp - epoch) * 1e-9, position[0], velocity[0],
@@ -226,6 +231,7 @@ def send_run(recording, run: RunColumns, geometry: layout.StringGeometry) -> Non
         values = run.array(topic, 2)
         layout._scalars(recording, entity, values[:, 0], scale * values[:, 1])
     _send_ensemble(recording, run)
+    _send_germ(recording, run)
     radial = []
     profile_t = run.array('contact', 1)[:, 0] if run.rows.get('contact') else np.zeros(0)
     for index, x_m in enumerate(geometry.stations_m):
@@ -259,6 +265,13 @@ def _send_ensemble(recording, run: RunColumns) -> None:
     layout.send_ensemble(recording, mean[:n, 0], mean[:n, 1:], lower[:n, 1:], upper[:n, 1:])
 
 
+def _send_germ(recording, run: RunColumns) -> None:
+    mean, lower, upper = (run.array(topic, 4) for topic in GERM_TOPICS)
+    n = min(mean.shape[0], lower.shape[0], upper.shape[0])
+    if n:
+        layout.send_germ(recording, mean[:n, 0], mean[:n, 1:], lower[:n, 1:], upper[:n, 1:])
+
+
 def write_rrd(source, rrd_path: str | os.PathLike, stations_m: Sequence[float] | None = None,
               *, active_tab: int | str = 0, application_id: str = layout.APPLICATION_ID
               ) -> Path:
@@ -275,7 +288,8 @@ def write_rrd(source, rrd_path: str | os.PathLike, stations_m: Sequence[float] |
     files = log_files(source)
     run = read_run(files)
     geometry = geometry_of(run, stations_m)
-    blueprint = layout.twin_blueprint(geometry, active_tab=active_tab)
+    blueprint = layout.twin_blueprint(geometry, active_tab=active_tab,
+                                      assimilation=bool(run.rows.get(itf.ASSIMILATION_GERM_MEAN)))
     rrd_path = Path(rrd_path)
     recording = rr.RecordingStream(application_id, recording_id=files[0].stem)
     try:
