@@ -93,6 +93,10 @@ def play(log, members: int, duration_s: float, assimilation: bool, settings,
                for p in sensor_out.values() if p.topic_name in used])
     while not all(end() for end in ends):
         executor.spin_once(timeout_sec=0.05)
+    while not node.pacer.started:             # /clock is best effort: the first may be lost
+        clock.publish(Clock(clock=_stamp(EPOCH_NS)))
+        executor.spin_once(timeout_sec=0.05)
+    assert node.epoch_ns == EPOCH_NS
     start = time.perf_counter()
     t, index = 0.0, 0
     try:
@@ -105,7 +109,9 @@ def play(log, members: int, duration_s: float, assimilation: bool, settings,
                 executor.spin_once(timeout_sec=0.0)
             clock.publish(Clock(clock=_stamp(EPOCH_NS + int(round(t * 1e9)))))
             deadline = time.monotonic() + 30.0
-            while node.engine.time_s < t - 1e-9 and time.monotonic() < deadline:
+            while node.engine.time_s < t - 1e-9:
+                if time.monotonic() > deadline:
+                    raise RuntimeError(f'the twin did not reach /clock {t:.3f} s in 30 s')
                 executor.spin_once(timeout_sec=0.01)
             t += CLOCK_STEP_S
         for _ in range(50):
