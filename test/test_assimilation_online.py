@@ -172,3 +172,19 @@ def test_the_engine_refuses_bad_samples_and_goes_on_in_open_loop(config, setting
 def test_an_ensemble_filter_needs_two_members(settings):
     with pytest.raises(ValueError, match='assimilation needs >= 2'):
         EnsembleSettings(members=1, assimilation=settings)
+
+
+def test_an_analysis_that_cannot_be_made_is_skipped_with_a_reason(config, settings):
+    """A member predicting NaN: the analysis is skipped and said so; nothing is written."""
+    simulator, sequential = _filter(config, settings)
+    for _ in range(3):
+        simulator.step()
+        sequential._record()
+    sequential._predicted[:, 1, 0] = np.nan
+    q = simulator.state.q.copy()
+    assert sequential.offer(Sample('top_drive', simulator.time_s, {'top_torque': 1e3})) is None
+    assert sequential._analyse_ready() is None
+    (why,) = sequential.take_refusals()
+    assert 'skipped' in why and 'not finite' in why and '1 sample(s) unused' in why
+    np.testing.assert_array_equal(simulator.state.q, q)
+    assert sequential.analyses == 0 and sequential.samples_used == 0

@@ -120,3 +120,35 @@ def test_the_bit_speed_direction_changes_the_bit_speed_by_one(small_simulator):
     after = sim.observe().speed_rad_per_s
     np.testing.assert_allclose(after[:3] - before[:3], 0.5, atol=1e-9)
     np.testing.assert_allclose(after[3:], before[3:], atol=1e-12)
+
+
+def test_a_germ_near_singular_has_finite_coordinates():
+    """G22 - L12^2 lost to rounding: the coordinates stay finite (L22 floored)."""
+    l12 = 3.0
+    germ = np.array([[[1.0, l12], [l12, l12 * l12 * (1.0 + 1e-17)]]])
+    coordinates = germ_to_coordinates(germ)
+    assert np.all(np.isfinite(coordinates))
+    np.testing.assert_allclose(coordinates_to_germ(coordinates), germ, rtol=1e-5)
+
+
+def test_an_analysed_germ_is_kept_within_bounds_and_a_nan_state_is_refused(small_simulator):
+    from drill_twin.assimilation.state import GERM_DIAGONAL_LIMIT
+    state = MemberState(small_simulator, 3, ['axial', 'torsional'])
+    vectors = state.extract()
+    before = small_simulator.integrator.germ.copy()
+    bad = vectors.copy()
+    bad[0, 0] = np.nan
+    with pytest.raises(ValueError, match='not finite'):
+        state.write(bad)
+    np.testing.assert_array_equal(small_simulator.integrator.germ, before)
+    wild = vectors.copy()
+    wild[:, -3:] = [[40.0, -50.0, -40.0], [0.0, 0.0, 0.0], [-1.0, 0.5, 1.0]]
+    state.write(wild)
+    germs = small_simulator.integrator.germ[:3]
+    diagonal = np.concatenate([germs[:, 0, 0], np.linalg.eigvalsh(germs).ravel()])
+    assert np.all(np.linalg.eigvalsh(germs) > 0)
+    assert germs[0, 0, 0] == pytest.approx(GERM_DIAGONAL_LIMIT)
+    np.testing.assert_allclose(germs[1], np.eye(2), atol=1e-15)
+    np.testing.assert_allclose(germs[2], coordinates_to_germ(wild[2:, -3:])[0], rtol=1e-12)
+    assert np.all(np.isfinite(diagonal))
+    state.write(vectors)                                   # put the fixture back

@@ -194,7 +194,7 @@ class SequentialFilter:
         if not ready:
             return None
         self._pending = [s for s in self._pending if s.stamp_s > now + 1e-9]
-        Y, y, variance = [], [], []
+        Y, y, variance, used = [], [], [], 0
         for sample in ready:
             prediction = self._prediction_at(sample.stamp_s)
             if prediction is None:
@@ -208,19 +208,33 @@ class SequentialFilter:
                 y.append(float(sample.values[channel]))
                 variance.append(float(self.settings.channel(channel).std(
                     prediction[:, column].mean())) ** 2)
-            self.samples_used += 1
+            used += 1
         if not y:
             return None
         spec = self.settings.filter
-        result = analyse(np.stack(Y, axis=1), np.asarray(y),
-                         np.maximum(np.asarray(variance), 1e-12), method=spec.method,
-                         inflation=spec.inflation, relaxation=spec.relaxation, rng=self.rng)
-        analysed = result.apply(self.state.extract())
+        Y, forecast = np.stack(Y, axis=1), self.state.extract()
+        if not (np.all(np.isfinite(Y)) and np.all(np.isfinite(forecast))):
+            self._refuse(f'analysis at {now:.3f} s skipped: the members\' predictions or '
+                         f'state are not finite ({used} sample(s) unused)')
+            return None
+        try:
+            result = analyse(Y, np.asarray(y), np.maximum(np.asarray(variance), 1e-12),
+                             method=spec.method, inflation=spec.inflation,
+                             relaxation=spec.relaxation, rng=self.rng)
+        except (np.linalg.LinAlgError, ValueError) as error:
+            self._refuse(f'analysis at {now:.3f} s skipped: {error} ({used} sample(s) unused)')
+            return None
+        analysed = result.apply(forecast)
         sigma = spec.model_error_bit_speed_rad_per_s
         if sigma > 0:                         # additive inflation: centred, the mean unchanged
             kicks = sigma * self.rng.standard_normal(analysed.shape[0])
             analysed += np.outer(kicks - kicks.mean(), self.state.bit_speed_direction())
+        if not np.all(np.isfinite(analysed)):
+            self._refuse(f'analysis at {now:.3f} s skipped: it is not finite '
+                         f'({used} sample(s) unused)')
+            return None
         self.state.write(analysed)
+        self.samples_used += used
         # The smoother step: predictions still to be compared with late samples.
         self._predicted = np.einsum('ij,tjc->tic', result.transform, self._predicted)
         self.analyses += 1

@@ -18,15 +18,35 @@ import numpy as np
 from drill_twin.dynamics.simulator import Simulator
 
 GERM_COORDINATES = ('log_l11', 'l12', 'log_l22')
+GERM_DIAGONAL_LIMIT = 100.0
+"""An analysed member's germ keeps L11^2 and L22^2 within [1/limit, limit] and |L12| within
+sqrt(limit): the prior at the largest dispersion the twin accepts (0.65) stays inside (20 000
+draws: L^2 within 0.012 ... 5). Without a bound the filter can drive a poorly observed
+entry towards a germ near singular (its coordinates then lose their meaning to rounding)."""
+_LOG_DIAGONAL_LIMIT = 0.5 * np.log(GERM_DIAGONAL_LIMIT)
 
 
 def germ_to_coordinates(germ: np.ndarray) -> np.ndarray:
-    """(m, 2, 2) SPD germs -> (m, 3) coordinates (log L11, L12, log L22), G = L^T L."""
+    """
+    (m, 2, 2) SPD germs -> (m, 3) coordinates (log L11, L12, log L22), G = L^T L.
+
+    For a germ near singular, G22 - L12^2 is floored at 1e-12 G22 (rounding can make it
+    negative).
+    """
     g11, g12, g22 = germ[:, 0, 0], germ[:, 0, 1], germ[:, 1, 1]
     l11 = np.sqrt(g11)
     l12 = g12 / l11
-    l22 = np.sqrt(g22 - l12 * l12)
+    l22 = np.sqrt(np.maximum(g22 - l12 * l12, 1e-12 * g22))
     return np.stack([np.log(l11), l12, np.log(l22)], axis=1)
+
+
+def bounded_coordinates(coordinates: np.ndarray) -> np.ndarray:
+    """Return germ coordinates (m, 3) within :data:`GERM_DIAGONAL_LIMIT`'s bounds."""
+    limit = _LOG_DIAGONAL_LIMIT
+    bound = np.sqrt(GERM_DIAGONAL_LIMIT)
+    return np.stack([np.clip(coordinates[:, 0], -limit, limit),
+                     np.clip(coordinates[:, 1], -bound, bound),
+                     np.clip(coordinates[:, 2], -limit, limit)], axis=1)
 
 
 def coordinates_to_germ(coordinates: np.ndarray) -> np.ndarray:
@@ -105,18 +125,22 @@ class MemberState:
         """
         Put state vectors (members, size) back.
 
-        A member on bottom before stays on bottom (offset 0); an offset is never negative.
+        A member on bottom before stays on bottom (offset 0); an offset is never negative; a
+        germ is kept within :data:`GERM_DIAGONAL_LIMIT`'s bounds. Raises ValueError for a
+        non-finite vector (nothing is written).
         """
         sim, m, k = self.simulator, self.members, self.columns.size
         vectors = np.asarray(vectors, dtype=float)
         if vectors.shape != (m, self.size):
             raise ValueError(f'state vectors must have shape ({m}, {self.size})')
+        if not np.all(np.isfinite(vectors)):
+            raise ValueError('the analysed state is not finite')
         state = sim.state
         was_on_bottom = sim.on_bottom()[:m]
         q, rate = state.q[:m].copy(), state.q_rate[:m].copy()
         q[:, self.columns] = vectors[:, :k]
         rate[:, self.columns] = vectors[:, k:2 * k]
         offset = np.where(was_on_bottom, 0.0, np.maximum(vectors[:, 2 * k], 0.0))
-        germs = (coordinates_to_germ(vectors[:, 2 * k + 1:2 * k + 4])
+        germs = (coordinates_to_germ(bounded_coordinates(vectors[:, 2 * k + 1:2 * k + 4]))
                  if self.parameters == 'germ' else None)
         sim.set_members(q, rate, q @ self._bit_row + offset, germs)
