@@ -563,8 +563,7 @@ def _ensemble_tab(assimilation: bool = False):
             [f'ensemble/{key}/band', f'ensemble/{key}/model', f'ensemble/{key}/mean']))
     if assimilation:
         views.append(_series(
-            'Estimated bit-rock germ (assimilation): G11 (blue), G12 (orange), G22 (green); '
-            'mean and 95 % of the analysed members (thin); 1 is the paper\'s mean law',
+            'Estimated bit-rock germ: G11 (blue), G12 (orange), G22 (green); mean, 95 % (thin)',
             [f'ensemble/germ/{key}/{b}' for key in GERM_ENTRIES
              for b in ('lower', 'upper', 'mean')]))
     return rrb.Vertical(*views, name=TAB_TITLES['ensemble'])
