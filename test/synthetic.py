@@ -134,7 +134,7 @@ def synthetic_messages(duration_s: float = 10.0, rate_hz: float = 100.0,
             analysis = AnalysisRecord(time_s=step / rate_hz, nis=1.0, measurements=2,
                                       germ_mean=(1.0, 0.01 * step, 1.1),
                                       germ_lower=(0.9, -0.1, 1.0), germ_upper=(1.1, 0.1, 1.2))
-            for topic, message in messages.germ_messages(analysis, t_ns):
+            for topic, message in messages.germ_messages(analysis):
                 yield TimedMessage(topic, message, t_ns)
         plan = messages.TickPlan(kpis=True, ensemble_stamp_ns=t_ns, clock=True)
         for topic, message in messages.tick_messages(snapshot, stations, t_ns, plan):

@@ -130,3 +130,30 @@ def test_spawn_viewer_binds_localhost(monkeypatch, web):
     assert ('--web-viewer' in command) == web and '--expect-data-soon' in command
     assert connected == ['rerun+http://127.0.0.1:9871/proxy']
     assert os.path.basename(command[0]).startswith('rerun')
+
+
+def test_live_view_sends_every_analysis_of_a_twin_that_assimilates():
+    """Each analysis's germ (mean, 2.5 %, 97.5 %) is sent at its time; the blueprint has the
+    germ's view only for a twin that assimilates."""
+    import dataclasses
+
+    from drill_twin.assimilation.sequential import AnalysisRecord
+    rec, clock = Capture(), FakeClock()
+    view = LiveView((), recording=rec, clock=clock, assimilation=True)
+    for i in range(1, 51):
+        clock.now += 0.01
+        t = i * 0.01
+        analyses = (AnalysisRecord(time_s=t, nis=1.0, measurements=2, germ_mean=(1.0, t, 2.0),
+                                   germ_lower=(0.5, -t, 1.5), germ_upper=(1.5, 2 * t, 2.5)),
+                    ) if i % 10 == 0 else ()
+        view.update(dataclasses.replace(snapshot(t, stations=0), analyses=analyses))
+    view.close()
+    times, g12 = rec.rows('ensemble/germ/g12/mean')
+    assert np.allclose(times, [0.1, 0.2, 0.3, 0.4, 0.5])
+    assert np.allclose(np.ravel(g12), times)
+    assert np.allclose(np.ravel(rec.rows('ensemble/germ/g12/upper')[1]), 2 * times)
+    assert np.allclose(np.ravel(rec.rows('ensemble/germ/g22/lower')[1]), 1.5)
+    def views(assimilation):
+        return ' '.join(str(v.name) for v in layout._ensemble_tab(assimilation).contents)
+    assert 'Estimated bit-rock germ' in views(True)
+    assert 'Estimated bit-rock germ' not in views(False)

@@ -41,12 +41,13 @@ class LiveView:
         with :meth:`spawn_viewer` or :meth:`connect`, or give one that saves to a file).
     :param active_tab: the tab shown first (index or name, see ``rerun_layout.TABS``).
     :param clock: wall clock (s) for the send rate (tests pass a fake one).
+    :param assimilation: the twin assimilates: the ensemble tab shows the estimated germ.
     """
 
     def __init__(self, stations_m: Sequence[float], config=None, *, recording=None,
                  sample_rate_hz: float = 50.0, profile_rate_hz: float = 10.0,
                  send_rate_hz: float = 4.0, active_tab: int | str = 0,
-                 clock: Callable[[], float] = time.monotonic):
+                 clock: Callable[[], float] = time.monotonic, assimilation: bool = False):
         import rerun as rr
 
         if config is None:
@@ -55,7 +56,7 @@ class LiveView:
             config = load_config(None)
         self.geometry = layout.StringGeometry.from_config(config, stations_m)
         self.blueprint = layout.twin_blueprint(self.geometry, active_tab=active_tab,
-                                               follow=True)
+                                               follow=True, assimilation=assimilation)
         self.recording = recording if recording is not None else rr.RecordingStream(
             layout.APPLICATION_ID)
         self.sample_period_s = 1.0 / sample_rate_hz
@@ -106,7 +107,7 @@ class LiveView:
     # -- data --------------------------------------------------------------------------------
     def _clear(self) -> None:
         self._rows: dict[str, list] = {'bit': [], 'top': [], 'kpi': [], 'ensemble': [],
-                                       'station': [], 'profile': [], 'health': []}
+                                       'germ': [], 'station': [], 'profile': [], 'health': []}
         self._events: list[tuple[float, str, str]] = []
         self._commands: dict[str, list] = {'speed': [], 'hook': []}
 
@@ -121,6 +122,9 @@ class LiveView:
         for event in snapshot.events:
             self._events.append((float(event.time_s), f'{event.kind.replace("_", " ")}: '
                                  f'{event.message}', event.level))
+        for record in snapshot.analyses:            # every analysis (a few per second)
+            self._rows['germ'].append((record.time_s, *record.germ_mean, *record.germ_lower,
+                                       *record.germ_upper))
         if t >= self._next_sample:
             self._next_sample = t + self.sample_period_s - 1e-9
             self._sample(snapshot, t)
@@ -192,6 +196,9 @@ class LiveView:
         if rows['ensemble']:
             ens = np.asarray(rows['ensemble'])
             layout.send_ensemble(rec, ens[:, 0], ens[:, 1:7], ens[:, 7:13], ens[:, 13:19])
+        if rows['germ']:
+            germ = np.asarray(rows['germ'], dtype=float)
+            layout.send_germ(rec, germ[:, 0], germ[:, 1:4], germ[:, 4:7], germ[:, 7:10])
         if rows['station']:
             station = np.asarray(rows['station'])
             for k in range(len(geometry.stations_m)):

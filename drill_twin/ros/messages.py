@@ -316,7 +316,7 @@ def ensemble_messages(snapshot: TwinSnapshot, time_ns: int):
                                  (itf.ENSEMBLE_UPPER, snapshot.ensemble_upper))]
 
 
-def germ_messages(record, time_ns: int):
+def germ_messages(record):
     """
     (topic, message) of an analysis's estimated germ: [G11, G12, G22] of the analysed
     members' mean, 2.5 % and 97.5 % (std_msgs/Float64MultiArray, dimension 'G11,G12,G22').

@@ -504,10 +504,8 @@ class TwinNode(Node):
                 self._report(event.level, event.message)
         for record in snapshot.analyses:
             self._innovations.append((record.nis, record.measurements))
-        if snapshot.analyses and (self.engine.ensemble.assimilation is not None):
-            record = snapshot.analyses[-1]
-            stamp = self.epoch_ns + int(round(record.time_s * 1e9))
-            for topic, message in messages.germ_messages(record, stamp):
+        if snapshot.analyses:                       # the latest analysis's germ
+            for topic, message in messages.germ_messages(snapshot.analyses[-1]):
                 self._publish(topic, message, now)
         if self.log and not self.log.open:          # a write failed (disk full, ...)
             self._on_log_failure(now)
@@ -771,7 +769,8 @@ def _run(ros_args: list[str], view: str | None = None, console: bool = False) ->
         node = create_twin_node(params)
         if view:
             from drill_twin.recording.live_view import LiveView
-            node.live_view = LiveView(node.stations_m, node.config)
+            node.live_view = LiveView(node.stations_m, node.config,
+                                      assimilation=node.engine.assimilating)
             node.live_view.spawn_viewer(web=(view == 'web'))
         if console:
             from drill_twin.cli.console import StatusPrinter
