@@ -62,8 +62,9 @@ def _samples_by_arrival(log, channels):
 def test_the_twin_analyses_exactly_what_the_offline_filter_does(config, settings, rig_log,
                                                                 separate_process):
     """
-    The engine, fed the log's samples as they arrive (one model step a tick), has the offline
-    filter's analysed members: the same bit speeds to the last bit, the same analyses.
+    The engine fed a log's samples as they arrive has the offline filter's members.
+
+    One model step a tick: the same bit speeds to the last bit, the same analyses.
     """
     spec = settings.filter
     offline = run_filter(config, settings, rig_log).arrays()
@@ -103,9 +104,10 @@ def _filter(config, settings, members=4):
 
 def test_a_late_sample_is_compared_with_the_prediction_at_its_stamp(config, settings):
     """
-    A sample taken at t and delivered 0.3 s later (off the step grid: interpolated) is
-    compared with what the members predicted at t, and a sample equal to that prediction's
-    mean, at a tiny noise, leaves the mean there: an innovation of zero.
+    A late sample is compared with what the members predicted at its stamp.
+
+    Taken at t off the step grid (interpolated) and delivered 0.3 s later: a sample equal to
+    the prediction's mean there is an innovation of zero.
     """
     simulator, sequential = _filter(config, settings)
     dt = simulator.dt
@@ -116,7 +118,8 @@ def test_a_late_sample_is_compared_with_the_prediction_at_its_stamp(config, sett
         o = simulator.observe()
         recorded[round(o.time_s / dt)] = o.top_torque_nm.copy()
         sequential._record()
-    below, above = recorded[round((stamp - 0.5 * dt) / dt)], recorded[round((stamp + 0.5 * dt) / dt)]
+    below = recorded[round((stamp - 0.5 * dt) / dt)]
+    above = recorded[round((stamp + 0.5 * dt) / dt)]
     predicted = 0.5 * (below + above)
     np.testing.assert_allclose(sequential._prediction_at(stamp)[:, 0], predicted, rtol=1e-12)
     assert sequential.offer(Sample('top_drive', stamp, {'top_torque': predicted.mean()})) is None
@@ -144,8 +147,10 @@ def test_a_bad_sample_is_refused_with_its_reason(config, settings, sample, words
 
 def test_the_engine_refuses_bad_samples_and_goes_on_in_open_loop(config, settings):
     """
-    A refused sample is an event with its reason and a count in health; the ensemble goes on
-    (no analysis without samples); a twin without a filter refuses samples.
+    A refused sample is an event with its reason and a count in health.
+
+    The ensemble goes on (no analysis without samples); a twin without a filter refuses
+    samples.
     """
     engine = TwinEngine(config, EnsembleSettings(members=4, dispersion=0.1,
                                                  assimilation=settings))

@@ -133,8 +133,11 @@ def test_spawn_viewer_binds_localhost(monkeypatch, web):
 
 
 def test_live_view_sends_every_analysis_of_a_twin_that_assimilates():
-    """Each analysis's germ (mean, 2.5 %, 97.5 %) is sent at its time; the blueprint has the
-    germ's view only for a twin that assimilates."""
+    """
+    Each analysis's germ (mean, 2.5 %, 97.5 %) is sent at its time.
+
+    The blueprint has the germ's view only for a twin that assimilates.
+    """
     import dataclasses
 
     from drill_twin.assimilation.sequential import AnalysisRecord
@@ -153,6 +156,7 @@ def test_live_view_sends_every_analysis_of_a_twin_that_assimilates():
     assert np.allclose(np.ravel(g12), times)
     assert np.allclose(np.ravel(rec.rows('ensemble/germ/g12/upper')[1]), 2 * times)
     assert np.allclose(np.ravel(rec.rows('ensemble/germ/g22/lower')[1]), 1.5)
+
     def views(assimilation):
         return ' '.join(str(v.name) for v in layout._ensemble_tab(assimilation).contents)
     assert 'Estimated bit-rock germ' in views(True)

@@ -40,8 +40,10 @@ def _reading(stamp, name, position=(), velocity=(), effort=()):
 
 def test_the_twin_assimilates_the_rigs_surface_measurements(twin_factory, tmp_path):  # noqa: F811
     """
-    The rig's surface torque and block position (here the mean model's own, as a rig whose
-    string is the mean model would read them) are analysed: the estimated germ is published
+    The rig's surface torque and block position are analysed.
+
+    Here the mean model's own, as a rig whose string is the mean model would read them: the
+    estimated germ is published
     with bounds after the first analyses, health reports the analyses, the NIS and the samples
     used; the samples are in the log; a malformed message and a NaN reading are refused with
     their reasons (WARN), and the twin goes on.

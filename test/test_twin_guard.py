@@ -296,9 +296,10 @@ def test_a_members_torque_bound_is_that_of_its_own_random_law(config):
 
 def test_the_torque_bound_of_coupled_germs_is_each_members_law_evaluated_directly(config):
     """
-    The bound of germs with coupling (G12 != 0) is the largest |TOB| of each member's random
-    law (Eq. 50) over the envelope's points, evaluated member by member; ``set_germs``
-    follows germs that change (an ensemble filter estimates them).
+    The bound of coupled germs is each member's random law's largest |TOB|.
+
+    With G12 != 0, over the envelope's points (Eq. 50), evaluated member by member;
+    ``set_germs`` follows germs that change (an ensemble filter estimates them).
     """
     from drill_twin.twin.envelope import (ENVELOPE_TOP_DRIVE_SPEED_MAX_RAD_PER_S,
                                           PLAUSIBLE_BLOCK_SPEED_M_PER_S)

@@ -1,6 +1,4 @@
-"""
-The 95 % bounds of an ensemble's values: a Student-t prediction interval or percentiles.
-"""
+"""The 95 % bounds of an ensemble's values: a Student-t prediction interval or percentiles."""
 from __future__ import annotations
 
 import numpy as np

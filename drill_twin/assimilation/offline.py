@@ -27,6 +27,7 @@ from drill_twin.dynamics.simulator import Simulator
 from drill_twin.twin.stepping import GuardedSimulator
 from drill_twin.uncertainty.germ import germs_for_realizations
 
+
 @dataclass
 class Estimate:
     """
@@ -70,7 +71,8 @@ class Estimate:
 
     def arrays(self) -> dict[str, np.ndarray]:
         return {name: np.asarray(getattr(self, name), dtype=float) for name in (
-            'time_s', 'filtered', 'open_loop', 'hole_depth_m', 'analysis_time_s', 'nis', 'measurements',
+            'time_s', 'filtered', 'open_loop', 'hole_depth_m', 'analysis_time_s', 'nis',
+            'measurements',
             'germ_mean', 'germ_lower', 'germ_upper')}
 
 

@@ -40,8 +40,10 @@ EARLY_TOLERANCE_S = 5.0
 @dataclass(frozen=True)
 class Sample:
     """
-    One sensor's reading: ``stamp_s`` (model time when sampled, s) and ``values`` {channel:
-    value in SI, the driller's signs} (:mod:`.measurements`).
+    One sensor's reading.
+
+    ``stamp_s``: model time when sampled (s); ``values``: {channel: value in SI, the
+    driller's signs} (:mod:`.measurements`).
     """
 
     sensor: str
@@ -52,8 +54,10 @@ class Sample:
 @dataclass(frozen=True)
 class AnalysisRecord:
     """
-    One analysis: its model time (s), normalised innovation squared and number of measured
-    values, and the analysed members' germ entries (G11, G12, G22): mean, 2.5 % and 97.5 %.
+    One analysis.
+
+    Its model time (s), normalised innovation squared and number of measured values, and the
+    analysed members' germ entries (G11, G12, G22): mean, 2.5 % and 97.5 %.
     """
 
     time_s: float
@@ -173,7 +177,7 @@ class SequentialFilter:
         self._records += 1
 
     def _prediction_at(self, stamp_s: float) -> np.ndarray | None:
-        """The members' predictions (N, channels) at ``stamp_s``, or None outside the buffer."""
+        """Return the members' predictions (N, channels) at ``stamp_s`` (None: not kept)."""
         slots = np.flatnonzero(np.isfinite(self._times))
         if slots.size == 0:
             return None

@@ -90,9 +90,9 @@ def new_log_path(log_dir: str | Path) -> Path:
 def open_log(path: Path, params: TwinParameters, stations_m, metadata: TwinLogMetadata, *,
              tf: bool = False, measurement_topics=()) -> TwinLog:
     """
-    Open the run's log, the rosbag2 bag ``path`` (with /tf and /tf_static if ``tf``, and the
-    rig's sensor topics the twin assimilates).
+    Open the run's log, the rosbag2 bag ``path``.
 
+    With /tf and /tf_static if ``tf``, and the rig's sensor topics the twin assimilates.
     Raises OSError.
     """
     return TwinLog(path, stations_m, metadata, split_duration_s=params.log_split_s, tf=tf,

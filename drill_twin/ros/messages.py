@@ -18,7 +18,7 @@ from rcl_interfaces.msg import Log
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import (Float64, Float64MultiArray, Header, MultiArrayDimension,
-                           MultiArrayLayout, String)
+                          MultiArrayLayout, String)
 
 from drill_twin import interface as itf
 from drill_twin.twin.engine import BitState, TwinEvent, TwinSnapshot
@@ -318,8 +318,10 @@ def ensemble_messages(snapshot: TwinSnapshot, time_ns: int):
 
 def germ_messages(record):
     """
-    (topic, message) of an analysis's estimated germ: [G11, G12, G22] of the analysed
-    members' mean, 2.5 % and 97.5 % (std_msgs/Float64MultiArray, dimension 'G11,G12,G22').
+    Return (topic, message) of an analysis's estimated germ.
+
+    [G11, G12, G22] of the analysed members' mean, 2.5 % and 97.5 %
+    (std_msgs/Float64MultiArray, one dimension labelled 'G11,G12,G22').
     """
     def array(values):
         return Float64MultiArray(

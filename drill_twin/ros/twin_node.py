@@ -254,8 +254,10 @@ class TwinNode(Node):
 
     def _on_measurement(self, sensor: str, topic: str, message: JointState) -> None:
         """
-        Hand a rig sample to the ensemble filter (stamp: the header's, in the twin's clock;
-        an unset stamp is taken as now) and log it; a bad one is refused with a diagnostic.
+        Hand a rig sample to the ensemble filter and log it.
+
+        Its stamp: the header's, in the twin's clock (an unset stamp is taken as now); a bad
+        sample is refused with a diagnostic.
         """
         now = self.twin_time_ns()
         if self.log and self.pacer.started:
@@ -612,7 +614,7 @@ class TwinNode(Node):
         return values
 
     def _assimilation_values(self, h: dict) -> dict:
-        """The filter's figures of the period; note missing samples and large innovations."""
+        """Return the filter's figures of the period; note missing samples, large NIS."""
         innovations, self._innovations = self._innovations, []
         received = self.engine.measurements_received
         new, self._measurements_at_report = (received - self._measurements_at_report,

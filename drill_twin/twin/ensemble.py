@@ -218,7 +218,7 @@ class LocalEnsemble:
 
 
 def measurement_refused(time_s: float, problem: str) -> TwinEvent:
-    """The event of a measurement sample the twin could not use (the twin goes on)."""
+    """Return the event of a measurement sample the twin could not use (it goes on)."""
     return TwinEvent('measurement_rejected', 'warn', time_s,
                      f'measurement refused: {problem}', {'reason': problem})
 
