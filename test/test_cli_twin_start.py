@@ -45,7 +45,14 @@ def run_twin(*args, env, cwd):
     (('--ros-args', '-p', 'rate_hz:=0'), '--ros-args -p: rate_hz: must lie in 1 ... 1000, got 0'),
     ('file', 'params.yaml: rate_hz: must lie in 1 ... 1000, got 0'),
     ('unknown', 'params.yaml: colour: unknown parameter of the twin node'),
-], ids=['ensemble', 'delta', '-p', 'params-file', 'unknown'])
+    (('--assimilation', 'no-such.yaml'), '--assimilation: no-such.yaml: no such file'),
+    (('--assimilate', '--ensemble', '1'), 'ensemble_members: assimilation needs at least 2 '
+                                          'ensemble members, got 1'),
+    (('--assimilate', '--ros-args', '-p',
+      'assimilation_overrides:=["assimilation.filter.inflation=0.5"]'),
+     'inflation: must be >= 1'),
+], ids=['ensemble', 'delta', '-p', 'params-file', 'unknown', 'assimilation-file',
+        'assimilation-members', 'assimilation-override'])
 def test_out_of_range_node_parameters_are_one_line(tmp_path, env, args, words):
     if isinstance(args, str):
         path = tmp_path / 'params.yaml'

@@ -265,12 +265,14 @@ def test_log_metadata_round_trip_and_keys():
     record = METADATA.to_record()
     assert set(record) == {'config', 'seed', 'clock_epoch_ns', 'time_step_s', 'ensemble_members',
                            'ensemble_dispersion', 'ensemble_process', 'rate_hz', 'substeps',
-                           'fast', 'kpi_window_s', 'version'}
+                           'fast', 'kpi_window_s', 'version', 'assimilation'}
     assert all(isinstance(v, str) for v in record.values())
     assert record['fast'] == 'false' and record['time_step_s'] == '0.01'
     assert TwinLogMetadata.from_record(record) == METADATA
-    older = {k: v for k, v in record.items() if k not in ('kpi_window_s', 'ensemble_process')}
+    older = {k: v for k, v in record.items()
+             if k not in ('kpi_window_s', 'ensemble_process', 'assimilation')}
     assert TwinLogMetadata.from_record(older).kpi_window_s == 10.0
+    assert TwinLogMetadata.from_record(older).assimilation is False
 
 
 @pytest.mark.parametrize('change, message', [

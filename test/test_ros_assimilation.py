@@ -132,6 +132,11 @@ def test_the_twin_assimilates_the_rigs_surface_measurements(twin_factory, tmp_pa
             topics[channel.topic] = topics.get(channel.topic, 0) + 1
     assert topics.get('/rig/top_drive', 0) >= 5 and topics.get('/rig/hook', 0) >= 5
     assert topics.get(itf.ASSIMILATION_GERM_MEAN, 0) >= 5
+    # The log says the ensemble assimilated: a resimulation reproduces the mean model only.
+    from drill_twin.recording.resimulate import resimulate
+    result = resimulate(logs[0].parent)
+    assert result.assimilated and result.ensemble_compared == 0
+    assert result.compared > 20 and result.identical
 
 
 def test_without_measurements_the_twin_says_it_runs_in_open_loop(twin_factory):  # noqa: F811

@@ -47,6 +47,9 @@ def run(args: argparse.Namespace) -> int:
               f'{result.recorded_version})')
         for field, value in result.max_difference.items():
             print(f'  max |difference| {field:<18} {value:.3g}')
+        if result.assimilated:
+            print('the ensemble assimilated the rig\'s samples: only the mean model is '
+                  'resimulated')
         if ensemble:
             print(f'{result.ensemble_compared} ensemble mean and bound states compared')
             for field, value in ensemble.items():

@@ -47,6 +47,12 @@ def add_parser(subparsers) -> None:
     parser.add_argument('--ensemble-in-process', action='store_true',
                         help='integrate the ensemble in the node\'s process instead of a '
                              'worker process (one-core machines)')
+    parser.add_argument('--assimilate', action='store_true',
+                        help='correct the ensemble with the rig\'s measurements (/rig/top_drive, '
+                             '/rig/hook: an ensemble Kalman filter, docs/ASSIMILATION.md)')
+    parser.add_argument('--assimilation', metavar='FILE',
+                        help='assimilation settings (default config/assimilation.yaml); '
+                             'implies --assimilate')
     parser.set_defaults(run=run)
 
 
@@ -103,6 +109,12 @@ def ros_arguments(args: argparse.Namespace) -> list[str]:
         set_parameter('seed', args.seed)
     if args.ensemble_in_process:
         set_parameter('ensemble_process', False)
+    if args.assimilation:
+        if not Path(args.assimilation).is_file():
+            raise UsageError(f'--assimilation: {args.assimilation}: no such file')
+        set_parameter('assimilation_config', str(Path(args.assimilation).resolve()))
+    if args.assimilate or args.assimilation:
+        set_parameter('assimilation_enabled', True)
     return ros + list(getattr(args, 'ros_args', []))
 
 

@@ -14,6 +14,7 @@ The twin node writes it into every split of its log as the MCAP metadata record
 | ``rate_hz``, ``substeps``, ``time_step_s``, ``fast`` | the pacing (Hz, steps a tick, s) |
 | ``clock_epoch_ns`` | the twin clock's origin: ROS time (ns) at model time zero |
 | ``kpi_window_s`` | moving window of the stick-slip severity and MSE (s) |
+| ``assimilation`` | the ensemble assimilated the rig's measurements (it depended on them) |
 
 Booleans are ``true``/``false``, floats ``repr`` (exact round trip). Nothing here imports
 rclpy.
@@ -51,6 +52,8 @@ class TwinLogMetadata:
     :param fast: the twin ran as fast as it could (publishing /clock).
     :param kpi_window_s: moving window of the KPIs (s).
     :param version: drill_twin's version that wrote the log.
+    :param assimilation: the ensemble was an ensemble Kalman filter's (it depended on the
+        rig's samples: a resimulation cannot reproduce it).
     """
 
     config_yaml: str
@@ -65,6 +68,7 @@ class TwinLogMetadata:
     fast: bool = False
     kpi_window_s: float = 10.0
     version: str = '?'
+    assimilation: bool = False
 
     def __post_init__(self) -> None:
         for name in ('seed', 'clock_epoch_ns', 'ensemble_members', 'substeps'):
@@ -99,7 +103,8 @@ class TwinLogMetadata:
         Parse a ``drill_twin`` record; raise :class:`LogMetadataError` naming the key.
 
         Keys added after the first logs (``ensemble_process``, ``rate_hz``, ``substeps``,
-        ``fast``, ``kpi_window_s``, ``version``) take their defaults when missing.
+        ``fast``, ``kpi_window_s``, ``version``, ``assimilation``) take their defaults when
+        missing.
         """
         values = {}
         for field in dataclasses.fields(cls):

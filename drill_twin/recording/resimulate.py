@@ -38,7 +38,8 @@ class Resimulation:
     compared: bit-state messages compared; max_difference: per field, the largest absolute
     difference (SI units); ensemble_compared / ensemble_max_difference: the same over the
     ensemble mean and bound messages; recorded_version: drill_twin's version in the log;
-    commands: commands replayed.
+    commands: commands replayed; assimilated: the logged ensemble assimilated the rig's
+    samples (it is not resimulated).
     """
 
     compared: int
@@ -47,6 +48,7 @@ class Resimulation:
     commands: int
     ensemble_compared: int = 0
     ensemble_max_difference: dict | None = None
+    assimilated: bool = False
 
     @property
     def identical(self) -> bool:
@@ -85,7 +87,11 @@ def resimulate(path, progress=None) -> Resimulation:
     epoch = metadata.clock_epoch_ns
     dt_ns = metadata.time_step_ns
     commands, recorded, ensemble_recorded = [], {}, {}
-    topics = [itf.CMD_TOP_DRIVE_SPEED, itf.CMD_HOOK_LOAD, itf.BIT_STATE, *ENSEMBLE_TOPICS]
+    # An assimilating twin's ensemble followed the rig's samples: only its mean model is
+    # resimulated.
+    members = 0 if metadata.assimilation else metadata.ensemble_members
+    topics = [itf.CMD_TOP_DRIVE_SPEED, itf.CMD_HOOK_LOAD, itf.BIT_STATE,
+              *(ENSEMBLE_TOPICS if members else ())]
     for item in iter_messages(path, topics=topics):
         if item.topic == itf.BIT_STATE:
             recorded[_stamp_ns(item.message)] = item.message
@@ -97,7 +103,7 @@ def resimulate(path, progress=None) -> Resimulation:
     commands.sort(key=lambda c: c[0])
     with threadpool_limits(limits=1, user_api='blas'):
         engine = TwinEngine(
-            config, EnsembleSettings(members=metadata.ensemble_members,
+            config, EnsembleSettings(members=members,
                                      dispersion=metadata.ensemble_dispersion,
                                      seed=metadata.seed),
             CommandLimits(top_drive_speed_max_rad_per_s=float('inf'),
@@ -143,4 +149,4 @@ def resimulate(path, progress=None) -> Resimulation:
                         recorded_version=metadata.version, commands=len(commands),
                         ensemble_compared=ensemble_compared,
                         ensemble_max_difference=ensemble_differences if ensemble_compared
-                        else None)
+                        else None, assimilated=metadata.assimilation)

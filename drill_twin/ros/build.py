@@ -36,11 +36,15 @@ def build_engine(params: TwinParameters) -> TwinEngine:
     The ensemble's worker process starts here. Raises ConfigError on a bad configuration.
     """
     config = load_config(params.model_config or None, model_overrides(params))
+    assimilation = assimilation_settings(params)
+    # An ensemble filter's members draw their germs from the filter's prior.
+    dispersion = (params.ensemble_dispersion if assimilation is None
+                  else assimilation.filter.prior_dispersion)
     return TwinEngine(config,
-                      EnsembleSettings(members=params.ensemble_members,
-                                       dispersion=params.ensemble_dispersion, seed=params.seed,
+                      EnsembleSettings(members=params.ensemble_members, dispersion=dispersion,
+                                       seed=params.seed,
                                        separate_process=params.ensemble_process,
-                                       assimilation=assimilation_settings(params)),
+                                       assimilation=assimilation),
                       command_limits(params), kpi_window_s=params.kpi_window_s)
 
 
@@ -71,9 +75,10 @@ def log_metadata(params: TwinParameters, engine: TwinEngine, *, epoch_ns: int, s
         config_yaml=yaml.safe_dump(config_to_dict(engine.config), sort_keys=False),
         seed=params.seed, clock_epoch_ns=epoch_ns, time_step_s=engine.dt,
         ensemble_members=params.ensemble_members,
-        ensemble_dispersion=params.ensemble_dispersion,
+        ensemble_dispersion=engine.ensemble.dispersion,
         ensemble_process=bool(params.ensemble_process), rate_hz=params.rate_hz,
-        substeps=substeps, fast=fast, kpi_window_s=params.kpi_window_s, version=__version__)
+        substeps=substeps, fast=fast, kpi_window_s=params.kpi_window_s, version=__version__,
+        assimilation=engine.assimilating)
 
 
 def new_log_path(log_dir: str | Path) -> Path:

@@ -89,11 +89,12 @@ PARAMETERS = (
                   'measurements (an ensemble Kalman filter, docs/ASSIMILATION.md): subscribe '
                   'to the sensor topics of assimilation_config, publish the estimated bit-rock '
                   'germ, the innovation statistics in the health report; the ensemble is the '
-                  'analysed one (needs ensemble_members >= 2)', safe=False),
+                  'analysed one, its germs drawn at the filter\'s prior_dispersion instead of '
+                  'ensemble_dispersion (needs ensemble_members >= 2)', safe=False),
     ParameterSpec('assimilation_config', '', 'assimilation settings YAML: sensor topics, '
-                  'delays, noise levels, the filter (empty: config/assimilation.yaml; the '
-                  'ensemble\'s size, dispersion and seed are the node\'s parameters)',
-                  safe=False),
+                  'delays, noise levels, the filter and its prior dispersion (empty: '
+                  'config/assimilation.yaml; the ensemble\'s size and seed are the node\'s '
+                  'parameters)', safe=False),
     ParameterSpec('assimilation_overrides', (), 'assimilation.KEY=VALUE overrides of the '
                   'assimilation settings, e.g. assimilation.filter.analysis_rate_hz=2.0',
                   safe=False),

@@ -286,7 +286,7 @@ class TwinNode(Node):
         topics = self.measurement_topics
         assimilating = (f', assimilating {", ".join(topics)}' if topics else '')
         return (f'drill_twin {__version__}: {self.engine.ensemble.members} ensemble members '
-                f'(delta {p.ensemble_dispersion:g}, seed {p.seed}){assimilating}, '
+                f'(delta {self.engine.ensemble.dispersion:g}, seed {p.seed}){assimilating}, '
                 f'{self.substeps} steps of {self.engine.dt * 1e3:g} ms per tick, {pace}; '
                 f'{where}' + ('' if self.tf_enabled else '; no TF (tf2_msgs is not installed)'))
 
