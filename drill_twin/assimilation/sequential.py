@@ -240,7 +240,7 @@ class SequentialFilter:
         self.state.write(analysed)
         self.samples_used += used
         # The smoother step: predictions still to be compared with late samples.
-        self._predicted = np.einsum('ij,tjc->tic', result.transform, self._predicted)
+        self._predicted = np.matmul(result.transform, self._predicted)     # (t, N, c)
         self.analyses += 1
         record = self._summary(now, result)
         self.history.append(record)
