@@ -15,6 +15,7 @@ from threadpoolctl import threadpool_limits
 
 from drill_twin.config import ConfigError, load_config
 from drill_twin.dynamics import kpi
+from drill_twin.dynamics.member_measures import measure_members
 from drill_twin.dynamics.simulator import Simulator
 from drill_twin.twin.engine import CommandRejected, EnsembleSettings, TwinEngine
 from drill_twin.twin.envelope import (ENVELOPE_WEIGHT_ON_BIT_MAX_N,
@@ -257,6 +258,36 @@ def test_every_bound_of_the_guard_trips(config):
     (reason,) = guard.check(simulator).values()
     assert reason == (f'WOB {2.0 * guard.weight_on_bit_max_n:.4g} N (compression > 0) is '
                       f'beyond +-{guard.weight_on_bit_max_n:.4g} N')
+
+
+def test_the_guards_measures_are_the_states_own():
+    """
+    The compiled pass (dynamics.member_measures) against numpy on a random batch.
+
+    Finite flags (a nan, an inf, a huge finite value), the bit's and top's axial
+    displacement and speed over the axial block, 1/2 q'.q'; non-finite members read zero.
+    """
+    generator = np.random.default_rng(11)
+    members, n, start, size = 6, 20, 4, 7
+    q, rate, acceleration = (generator.standard_normal((members, n)) for _ in range(3))
+    q[1, 3] = np.nan
+    rate[2, 17] = np.inf
+    acceleration[3, 0] = -np.inf
+    q[4, 5] = 1e300                                        # huge, finite
+    bit_row, top_row = generator.standard_normal(size), generator.standard_normal(size)
+    finite = np.empty(members, dtype=bool)
+    bit_u, top_rate, kinetic = np.empty(members), np.empty(members), np.empty(members)
+    measure_members(q, rate, acceleration, start, bit_row, top_row, finite, bit_u, top_rate,
+                    kinetic)
+    expected = (np.isfinite(q).all(axis=1) & np.isfinite(rate).all(axis=1)
+                & np.isfinite(acceleration).all(axis=1))
+    assert finite.tolist() == expected.tolist() == [True, False, False, False, True, True]
+    ok = expected
+    axial = slice(start, start + size)
+    np.testing.assert_allclose(bit_u[ok], q[ok][:, axial] @ bit_row, rtol=1e-14)
+    np.testing.assert_allclose(top_rate[ok], rate[ok][:, axial] @ top_row, rtol=1e-14)
+    np.testing.assert_allclose(kinetic[ok], 0.5 * np.sum(rate[ok] ** 2, axis=1), rtol=1e-14)
+    assert not np.any(bit_u[~ok]) and not np.any(top_rate[~ok]) and not np.any(kinetic[~ok])
 
 
 # -- KPIs: finite or nothing -----------------------------------------------------------------

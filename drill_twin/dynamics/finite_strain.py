@@ -215,13 +215,24 @@ def accumulate_finite_strain(displacement_t, strain_pointer, strain_column, stra
                 linear[k, i] += value * strain[l, i]
         g, s, w = prestress_strain[p], section[p], weight_m[p]
         if reading == 0:
+            # Scalars and unrolled stores: the member loop then compiles to vector code.
+            g0, g1, g2, g3, g4, g5, g6, g7 = g[0], g[1], g[2], g[3], g[4], g[5], g[6], g[7]
+            h = prestress_stress[p]
+            h0, h1, h2, h3, h4, h5, h6, h7 = h[0], h[1], h[2], h[3], h[4], h[5], h[6], h[7]
+            ea, ei, er4, kga, kgi = s[0], s[1], s[2], s[3], s[4]
             for i in range(members):
-                sigma = _stress(g[0] + strain[0, i], g[1] + strain[1, i], g[2] + strain[2, i],
-                                g[3] + strain[3, i], g[4] + strain[4, i], g[5] + strain[5, i],
-                                g[6] + strain[6, i], g[7] + strain[7, i], s[0], s[1], s[2],
-                                s[3], s[4])
-                for k in range(8):
-                    stress[k, i] = ((sigma[k] - prestress_stress[p, k]) - linear[k, i]) * w
+                r0, r1, r2, r3, r4, r5, r6, r7 = _stress(
+                    g0 + strain[0, i], g1 + strain[1, i], g2 + strain[2, i], g3 + strain[3, i],
+                    g4 + strain[4, i], g5 + strain[5, i], g6 + strain[6, i], g7 + strain[7, i],
+                    ea, ei, er4, kga, kgi)
+                stress[0, i] = ((r0 - h0) - linear[0, i]) * w
+                stress[1, i] = ((r1 - h1) - linear[1, i]) * w
+                stress[2, i] = ((r2 - h2) - linear[2, i]) * w
+                stress[3, i] = ((r3 - h3) - linear[3, i]) * w
+                stress[4, i] = ((r4 - h4) - linear[4, i]) * w
+                stress[5, i] = ((r5 - h5) - linear[5, i]) * w
+                stress[6, i] = ((r6 - h6) - linear[6, i]) * w
+                stress[7, i] = ((r7 - h7) - linear[7, i]) * w
         else:
             for i in range(members):
                 strain[8, i] = _twist_angle(displacement_t, i, p, reading, twist_pointer,

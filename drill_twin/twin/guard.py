@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from drill_twin.dynamics.member_measures import measure_members
 from drill_twin.twin.envelope import (ENVELOPE_TOP_DRIVE_SPEED_MAX_RAD_PER_S,
                                       PLAUSIBLE_BLOCK_SPEED_M_PER_S, StringEnvelope,
                                       largest_torque_on_bit_nm)
@@ -84,20 +85,16 @@ class StateGuard:
         self.string_length_m = mesh.total_length_m
         self._clearance_max_m = float(np.max(self.clearance_m))
         axial = system.blocks['axial']
-        # Rows over all reduced coordinates (zero outside their block), so a check is a few
-        # products of the state as it is, without gathering columns: the bit's and the top's
-        # axial displacement (size,), v and w of every node (size, n_nodes; the bending
-        # blocks' rows: v then theta_z, w then theta_y).
-        self._bit_row = np.zeros(system.size)
-        self._bit_row[axial.columns] = axial.shapes[system.bit_node]
-        self._top_row = np.zeros(system.size)
-        self._top_row[axial.columns] = system.top_axial_row[axial.columns]
+        # The bit's and the top's axial rows of [Phi] over the axial block, and the v and w
+        # rows of every node over the bending blocks ((k, n_nodes) each; the bending blocks'
+        # rows are v then theta_z, w then theta_y): a check reads the state as it is.
+        self._axial_start = axial.columns.start
+        self._bit_row = np.ascontiguousarray(axial.shapes[system.bit_node])
+        self._top_row = np.ascontiguousarray(system.top_axial_row[axial.columns])
         nodes = system.n_nodes
-        self._bending = []
-        for name in ('bending_y', 'bending_z'):
-            rows = np.zeros((system.size, nodes))
-            rows[system.blocks[name].columns] = system.blocks[name].shapes[:nodes].T
-            self._bending.append(rows)
+        self._bending = [(system.blocks[name].columns,
+                          np.ascontiguousarray(system.blocks[name].shapes[:nodes].T))
+                         for name in ('bending_y', 'bending_z')]
         self._mass = None if np.array_equal(system.mass, np.eye(system.size)) else system.mass
         self._deepest = None
 
@@ -152,25 +149,28 @@ class StateGuard:
 
     def _measure(self, simulator, state, forces) -> dict[str, np.ndarray]:
         """Return the checked quantities of every member, shape (m,) ((m, n_nodes) for radius)."""
-        finite = (np.isfinite(state.q).all(axis=1) & np.isfinite(state.q_rate).all(axis=1)
-                  & np.isfinite(state.q_acceleration).all(axis=1))
+        q, rate = state.q, state.q_rate
+        members = q.shape[0]
+        finite = np.empty(members, dtype=bool)
+        bit_u, top_rate, kinetic = np.empty(members), np.empty(members), np.empty(members)
+        measure_members(np.ascontiguousarray(q), np.ascontiguousarray(rate),
+                        np.ascontiguousarray(state.q_acceleration), self._axial_start,
+                        self._bit_row, self._top_row, finite, bit_u, top_rate, kinetic)
         rop, omega = forces.rop_m_per_s, forces.bit_speed_rad_per_s
         wob, tob = forces.weight_on_bit_n, forces.torque_on_bit_nm
         finite &= np.isfinite(rop) & np.isfinite(omega) & np.isfinite(wob) & np.isfinite(tob)
-        q, rate = state.q, state.q_rate
         if not finite.all():                     # the others are measured, the bad zeroed
             q = np.where(finite[:, None], q, 0.0)
             rate = np.where(finite[:, None], rate, 0.0)
-        depth = self.string_length_m + q @ self._bit_row
+        if self._mass is not None:
+            kinetic = 0.5 * np.sum((rate @ self._mass) * rate, axis=1)
+        depth = self.string_length_m + bit_u
         values = {'finite': finite, 'depth': depth, 'hole': self._hole_depth(simulator, depth),
-                  'rop': rop, 'top_axial_speed': rate @ self._top_row,
-                  'bit_speed': omega, 'wob': wob, 'tob': tob,
-                  'kinetic_energy': 0.5 * (np.einsum('ij,ij->i', rate, rate)
-                                           if self._mass is None
-                                           else np.sum((rate @ self._mass) * rate, axis=1))}
+                  'rop': rop, 'top_axial_speed': top_rate, 'bit_speed': omega, 'wob': wob,
+                  'tob': tob, 'kinetic_energy': kinetic}
         if self.lateral:
-            y_rows, z_rows = self._bending
-            values['radius'] = np.hypot(q @ y_rows, q @ z_rows)
+            (y_columns, y_rows), (z_columns, z_rows) = self._bending
+            values['radius'] = np.hypot(q[:, y_columns] @ y_rows, q[:, z_columns] @ z_rows)
         return values
 
     def _reason(self, k: int, values: dict, top_speed_rad_per_s: float) -> str:
