@@ -540,6 +540,7 @@ class Excitation:
 
 KineticCouplingSign = Literal['derived', 'printed']
 StrainKinematics = Literal['invariant', 'printed_elastic', 'printed_absolute']
+StiffnessDamping = Literal['fixed_frame', 'rotating_frame']
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -555,10 +556,15 @@ class LateralReadings:
     not depend on the spin angle) or as printed (u_x = u - y theta_z + z theta_y), with
     theta_x the elastic twist ('printed_elastic') or the absolute angle, top drive's included
     ('printed_absolute'); docs/LATERAL.md, section 4.
+    stiffness_damping: Rayleigh's beta K_t acting on the velocities in the fixed frame
+    ('fixed_frame', the paper's [C] u') or on the strain rates of the spinning string
+    ('rotating_frame': internal damping, which adds the circulatory force of
+    dynamics/rotating_damping.py); docs/LATERAL.md, section 4.
     """
 
     kinetic_coupling: KineticCouplingSign = 'derived'
     strain_kinematics: StrainKinematics = 'invariant'
+    stiffness_damping: StiffnessDamping = 'fixed_frame'
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

@@ -20,6 +20,8 @@ from drill_twin.dynamics.excitation import ImbalanceForce, accumulate_imbalance
 from drill_twin.dynamics.finite_strain import (WORK_ROWS, StrainOperators,
                                                accumulate_finite_strain)
 from drill_twin.dynamics.kinetic_coupling import CouplingOperators, accumulate_kinetic_coupling
+from drill_twin.dynamics.rotating_damping import (RotatingDampingOperators,
+                                                  accumulate_rotating_damping)
 from drill_twin.dynamics.reduced_system import ReducedSystem
 from drill_twin.fem import strain_energy as se
 
@@ -157,19 +159,21 @@ class Workspace:
 
 @kernel
 def string_forces(switches, strain_arguments, coupling_arguments, contact_arguments,
-                  imbalance_arguments, displacement_t, theta_x_rate_t, theta_x_acceleration_t,
-                  bending_y_rate_t, bending_y_acceleration_t, bending_z_rate_t,
-                  bending_z_acceleration_t, strain, linear, stress, coupling, force_t, radial,
-                  in_contact, tangent):
+                  imbalance_arguments, rotating_arguments, displacement_t, theta_x_rate_t,
+                  theta_x_acceleration_t, bending_y_rate_t, bending_y_acceleration_t,
+                  bending_z_rate_t, bending_z_acceleration_t, strain, linear, stress, coupling,
+                  force_t, radial, in_contact, tangent):
     """
-    force_t += f_se + f_ke + the imbalance + f_ip (not the bit's), members last.
+    force_t += f_se + f_ke + the imbalance + rotating damping + f_ip (not the bit's).
 
-    The one place the forces of the string are summed (:meth:`NonlinearForces.accumulate` and
-    the Newmark step kernel call it). switches: (finite strain, kinetic coupling, contact); the
-    arguments of each kernel are those of NonlinearForces; imbalance_arguments: the excitation's
-    (:meth:`ImbalanceForce.arguments`, its first element says whether it is on; only then is
-    bending_z_acceleration_t read, at the imbalance's node). Returns the number of (member,
-    node) pairs touching the wall (radial, in_contact are zero and False without contact).
+    Members last. The one place the forces of the string are summed
+    (:meth:`NonlinearForces.accumulate` and the Newmark step kernel call it). switches: (finite
+    strain, kinetic coupling, contact); the arguments of each kernel are those of
+    NonlinearForces; imbalance_arguments: the excitation's (:meth:`ImbalanceForce.arguments`,
+    its first element says whether it is on; only then is bending_z_acceleration_t read, at the
+    imbalance's node); rotating_arguments: :meth:`RotatingDampingOperators.arguments` (first
+    element: on). Returns the number of (member, node) pairs touching the wall (radial,
+    in_contact are zero and False without contact).
     """
     if switches[0]:
         accumulate_finite_strain(displacement_t, *strain_arguments, strain, linear, stress,
@@ -182,6 +186,8 @@ def string_forces(switches, strain_arguments, coupling_arguments, contact_argume
         accumulate_imbalance(imbalance_arguments, displacement_t, theta_x_rate_t,
                              theta_x_acceleration_t, bending_y_acceleration_t,
                              bending_z_acceleration_t, force_t)
+    if rotating_arguments[0]:
+        accumulate_rotating_damping(rotating_arguments, displacement_t, theta_x_rate_t, force_t)
     if not switches[2]:
         radial[:, :] = 0.0
         in_contact[:, :] = False
@@ -209,6 +215,9 @@ class NonlinearForces:
         self.outer_radius_m = np.ascontiguousarray(system.node_outer_radius_m, dtype=float)
         self.imbalance = ImbalanceForce.of(system)     # excitation.imbalance, None when off
         self.imbalance_arguments = ImbalanceForce.arguments_of(self.imbalance, system)
+        self.rotating_damping = RotatingDampingOperators.of(system)
+        self.rotating_arguments = self.rotating_damping.arguments()
+        """lateral_readings.stiffness_damping's circulatory force (inert when fixed_frame)."""
         """The imbalance's kernel operands (inert when it is off); its top-drive angle is
         set before every evaluation."""
         self._workspace = None
@@ -263,7 +272,8 @@ class NonlinearForces:
                 raise ValueError('the imbalance needs the (w, theta_y) accelerations')
             bending_z_acceleration_t = work.bending_z_acceleration_t      # not read
         return string_forces(self.switches, self.strain_arguments, self.coupling_arguments,
-                             self.contact_arguments, self.imbalance_arguments, displacement_t,
+                             self.contact_arguments, self.imbalance_arguments,
+                             self.rotating_arguments, displacement_t,
                              theta_x_rate_t, theta_x_acceleration_t, bending_y_rate_t,
                              bending_y_acceleration_t, bending_z_rate_t,
                              bending_z_acceleration_t, work.strain, work.linear, work.stress,

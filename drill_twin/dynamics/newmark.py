@@ -241,7 +241,8 @@ class NewmarkIntegrator:
         without_bit = self._forces_without_bit
         self._forces_arguments = (without_bit.switches, without_bit.strain_arguments,
                                   without_bit.coupling_arguments, without_bit.contact_arguments,
-                                  without_bit.imbalance_arguments)
+                                  without_bit.imbalance_arguments,
+                                  without_bit.rotating_arguments)
         self._bit_constants = self._law_constants(germ)
         self._work = None
         self._rate = None                 # per member: the contraction rate of its last

@@ -471,8 +471,9 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out):
     state: (q, q_rate, q_acceleration (m, n) members first, hole (m,), has_hole);
     step_inputs: (top_speed, top_acceleration, load (n, m), max_iterations);
     bookkeeping: (have_rate, have_active, rate, since, previous_contact, previous_lifted);
-    forces: the arguments of forces.string_forces before the kinematics (the last: the
-    imbalance's, excitation.ImbalanceForce.arguments);
+    forces: the arguments of forces.string_forces before the kinematics (the last two: the
+    imbalance's, excitation.ImbalanceForce.arguments, and the rotating damping's,
+    rotating_damping.RotatingDampingOperators.arguments);
     operators: (shapes (4,), shapes_t (4,), ranges, bit_node, n_nodes, mass, mass is I,
     damping blocks (4,), stiffness, stiffness diagonal, S0^-1 blocks (4,), their row groups
     (4, 2), local directions, S0^-1 U, U^T S0^-1 U,
@@ -490,7 +491,8 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out):
     q, q_rate, q_acceleration, hole_in, has_hole = state
     top_speed, top_acceleration, load, max_iterations = step_inputs
     have_rate, have_active, rate, since, previous_contact, previous_lifted = bookkeeping
-    switches, strain_arguments, coupling_arguments, contact_arguments, imbalance = forces
+    (switches, strain_arguments, coupling_arguments, contact_arguments, imbalance,
+     rotating) = forces
     (shapes, shapes_t, ranges, bit_node, n_nodes, mass, mass_is_identity, damping, stiffness,
      stiffness_diagonal, effective_inverse, groups, local_directions, local_response, local_gram,
      bit_rows, bit_response, bit_flexibility, bit_axial_row, axial_index, torsion_index, dt,
@@ -517,8 +519,8 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out):
             imbalance_node_acceleration(imbalance, a, bending_z_acceleration_t)
         force_t[:, :] = 0.0
         touching = string_forces(switches, strain_arguments, coupling_arguments,
-                                 contact_arguments, imbalance, displacement_t, theta_x_rate_t,
-                                 theta_x_acceleration_t, bending_y_rate_t,
+                                 contact_arguments, imbalance, rotating, displacement_t,
+                                 theta_x_rate_t, theta_x_acceleration_t, bending_y_rate_t,
                                  bending_y_acceleration_t, bending_z_rate_t,
                                  bending_z_acceleration_t, strain, linear, stress, coupling,
                                  force_t, radial, in_contact, tangent)

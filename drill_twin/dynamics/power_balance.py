@@ -5,7 +5,7 @@ Where does the energy of the lateral modes come from? Along a run, the lateral e
 E = q'^T M_r q' / 2 + q^T K_r q / 2 (lateral columns of the reduced model: bending in y and z,
 with the prestress and fluid stiffness) changes by the work of the forces on the lateral DOFs:
 
-    E(t) - E(0) = W_damping + W_se + W_ke + W_contact + W_imbalance
+    E(t) - E(0) = W_damping + W_se + W_ke + W_contact + W_imbalance + W_rotating_damping
 
 (no other load reaches the lateral DOFs: g(t) and the hook load act on the torsional and
 axial columns, and the linear model does not couple them). Every term is accumulated along the
@@ -23,8 +23,10 @@ from drill_twin.dynamics.contact import contact_force
 from drill_twin.dynamics.finite_strain import StrainOperators, finite_strain_force
 from drill_twin.dynamics.forces import Kinematics
 from drill_twin.dynamics.kinetic_coupling import CouplingOperators, kinetic_coupling_force
+from drill_twin.dynamics.rotating_damping import rotating_damping_force
 
-TERMS = ('damping', 'finite_strain', 'kinetic_coupling', 'contact', 'imbalance')
+TERMS = ('damping', 'finite_strain', 'kinetic_coupling', 'contact', 'imbalance',
+         'rotating_damping')
 
 
 class LateralEnergyBalance:
@@ -90,6 +92,10 @@ class LateralEnergyBalance:
         imbalance = simulator.forces.imbalance
         if imbalance is not None:
             forces['imbalance'] = self._project(imbalance.force(system, fields))
+        rotating = simulator.forces.rotating_damping
+        if rotating.on:                 # lateral_readings.stiffness_damping: rotating_frame
+            forces['rotating_damping'] = self._project(rotating_damping_force(
+                system, fields.displacement, fields.theta_x_rate, rotating))
         return state.q[:, self.columns].copy(), forces
 
     def _project(self, force: np.ndarray) -> np.ndarray:

@@ -50,8 +50,7 @@ def quarter_turn(n_dofs: int) -> np.ndarray:
 
 
 def whirl_growth_rates(model: FiniteElementModel, spin_rad_per_s: float,
-                       rotating_damping: bool = True
-                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                       rotating_damping: bool = True, shapes: bool = False) -> tuple:
     """
     Eigenvalues of the linearised lateral motion at a constant spin.
 
@@ -60,7 +59,9 @@ def whirl_growth_rates(model: FiniteElementModel, spin_rad_per_s: float,
     displacement v + i w turns like e^(i Im s t)), else against it. A positive growth rate
     is a self-excited whirl.
     ``rotating_damping``: the beta term acts in the spinning frame (the reading above);
-    False gives the paper's fixed-frame damping (all growth rates negative).
+    False gives the paper's fixed-frame damping (all growth rates negative). ``shapes``: also
+    return the complex mode shapes U on all the model's DOFs, (n_dofs, count), the mode
+    being u = Re(U e^(s t)).
     """
     n = model.n_dofs
     lateral = np.isin(np.arange(n) % dofs.DOFS_PER_NODE, dofs.LATERAL_DOFS)
@@ -81,6 +82,9 @@ def whirl_growth_rates(model: FiniteElementModel, spin_rad_per_s: float,
     values, vectors = la.eig(system)
     upper = values.imag > 1e-9
     values, vectors = values[upper], vectors[:size, upper]
+    if shapes:
+        full = np.zeros((n, vectors.shape[1]), dtype=complex)
+        full[keep] = vectors
     # The mode is u = Re(U e^(s t)); its forward part is (V + i W) / 2, backward (V - i W)/2
     # (conjugated), with V, W the amplitudes of v and w at the same node.
     kind = np.arange(n)[keep] % dofs.DOFS_PER_NODE
@@ -90,4 +94,5 @@ def whirl_growth_rates(model: FiniteElementModel, spin_rad_per_s: float,
     forward = (np.sum(np.abs(v + 1j * w) ** 2, axis=0)
                > np.sum(np.abs(v - 1j * w) ** 2, axis=0))
     order = np.argsort(values.imag)
-    return values.real[order], values.imag[order], forward[order]
+    result = values.real[order], values.imag[order], forward[order]
+    return result + (full[:, order],) if shapes else result
