@@ -327,3 +327,31 @@ def test_a_step_with_wall_contact_matches_single_member_steps(default_config):
                                    atol=1e-12 * np.abs(batch.state.q).max())
         np.testing.assert_allclose(alone.last.weight_on_bit_n[0],
                                    batch.last.weight_on_bit_n[member], rtol=1e-9)
+
+
+def test_a_member_diverging_on_the_wall_fails_its_step_and_spares_the_others(default_config):
+    """
+    An infinite lateral displacement is 'in contact' with no direction (nan tangent).
+
+    The step's Woodbury correction cannot be made for that member: the step reports it not
+    finite (no exception, the caller retries or restarts it) and the member on the wall beside
+    it steps exactly as it does alone.
+    """
+    from drill_twin.dynamics.simulator import Simulator
+    batch = Simulator(default_config, members=2)
+    bending = batch.system.blocks['bending_y']
+    q, rate = batch.state.q.copy(), batch.state.q_rate.copy()
+    q[:, bending.columns] *= 40.0                  # both members pressed on the wall
+    alone = Simulator(default_config, members=1)
+    alone.reset(q[:1], rate[:1])
+    batch.reset(q, rate)
+    batch.state.q[1, bending.columns.start] = np.inf      # diverged since the last step
+    integrator = batch.integrator
+    state, result = integrator.step(batch.state, batch.state.top_speed_rad_per_s,
+                                    batch.hook_load_command_n)
+    assert not result.success and 'non-finite' in result.message
+    assert result.finite.tolist() == [True, False]
+    alone.step()
+    assert alone.last.contact.in_contact.any()
+    np.testing.assert_allclose(state.q[0], alone.state.q[0], rtol=1e-9,
+                               atol=1e-12 * np.abs(alone.state.q).max())

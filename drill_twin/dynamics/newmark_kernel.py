@@ -346,6 +346,13 @@ def _woodbury(i, in_contact, tangent, n_nodes, dt2, local_directions, local_resp
         for c in range(rank):
             gram[r, c] = local_gram[index[r], index[c]]
     system = np.eye(rank) + d @ gram
+    if not np.all(np.isfinite(system)):
+        # A diverged member (an infinite displacement has no direction on the wall): its
+        # iterate becomes nan, the step's finiteness check fails it, and the caller retries
+        # or restarts it; the other members go on.
+        y[:, i] = np.nan
+        response[:, :] = np.nan
+        return np.full((2, 2), np.nan)
     correction = np.linalg.solve(system, d)                  # (I + D G)^-1 D
     n = y.shape[0]
     directions = np.empty((n, rank))
