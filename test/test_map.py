@@ -90,6 +90,30 @@ def test_the_weight_on_bit_is_set_through_the_hook_load(coarse_map):
     assert_allclose(weight, weight[0, 0], rtol=1e-12)          # W = H + WOB, one string
 
 
+def test_steady_points_drill_at_the_laws_steady_rate(coarse_map):
+    """
+    ROP is the rate the hole deepens; where drilling is steady it is the law's steady ROP.
+
+    At the linearly stable points that stay steady (SSI < 0.05) the hole deepens at the ROP of
+    Eq. 25 at (Omega, WOB) within 1 %, or not at all where that ROP is negative (below the
+    cutting threshold the rock holds the bit), and where it deepens MSE is Teale's with that
+    ROP, the law's TOB and the top speed (the bit turns at it when steady) within 1 %.
+    """
+    steady = ((coarse_map.column('linearly_stable') == 1)
+              & (coarse_map.column('stick_slip_severity') < 0.05))
+    rop = coarse_map.column('rop_m_per_s')[steady]
+    law = coarse_map.column('steady_rop_m_per_s')[steady]
+    assert (law > 0).sum() >= 3 and (law < 0).sum() >= 1           # 3 rad/s and 50 kN: < 0
+    assert_allclose(rop, np.maximum(law, 0.0), rtol=0.01, atol=1e-9)
+    area = np.pi * load_config(None, COARSE).borehole.diameter_m ** 2 / 4
+    speed = coarse_map.column('top_drive_speed_rad_per_s')[steady]
+    expected = (coarse_map.column('weight_on_bit_n')[steady] / area
+                + np.abs(coarse_map.column('steady_torque_on_bit_nm')[steady]) * speed
+                / (area * rop))
+    cutting = law > 0
+    assert_allclose(coarse_map.column('mse_pa')[steady][cutting], expected[cutting], rtol=0.01)
+
+
 def test_backward_rotation_is_flagged_from_the_bit_speed(coarse_map):
     backward = coarse_map.column('backward_rotation') == 1
     assert_allclose(backward, coarse_map.column('bit_speed_min_rad_per_s') < 0)

@@ -67,7 +67,7 @@ COLUMNS = {
     'backward_rotation': '1 if the bit turned backwards (bit speed < 0) in the window',
     'lift_off_count': 'bit lift-off episodes that started in the window',
     'impact_count': 'borehole impacts (wall-contact episodes, all nodes) in the window',
-    'rop_m_per_s': 'mean rate of penetration over the window (m/s)',
+    'rop_m_per_s': 'mean rate of penetration over the window: the rate the hole deepens (m/s)',
     'torque_on_bit_mean_nm': 'mean torque on bit over the window (t_bit, < 0 resisting; N m)',
     'mse_pa': 'Teale\'s mechanical specific energy over the window (Pa)',
     'oscillation_frequency_hz': 'frequency of the bit-speed oscillation in the window, from '
@@ -242,7 +242,7 @@ def _integrate(config, system, spec: MapSpec, steady, hook: float,
     steps = int(round(spec.duration_s / dt))
     first = steps - int(round(spec.window_s / dt))
     n = steps - first + 1
-    series = {name: np.zeros(n) for name in ('speed', 'rop', 'wob', 'tob')}
+    series = {name: np.zeros(n) for name in ('speed', 'hole', 'wob', 'tob')}
     impacts = lift_offs = None
     for k in range(steps + 1):
         if k > 0:
@@ -254,10 +254,11 @@ def _integrate(config, system, spec: MapSpec, steady, hook: float,
             lift_offs = int(simulator.lift_off_count[0])
         last, j = simulator.last, k - first
         series['speed'][j] = last.bit_speed_rad_per_s[0]
-        series['rop'][j] = last.rop_m_per_s[0]
+        series['hole'][j] = simulator.hole_depth_m[0]
         series['wob'][j] = last.weight_on_bit_n[0]
         series['tob'][j] = last.torque_on_bit_nm[0]
     speed = series['speed']
+    rop = np.gradient(series['hole'], dt)        # ROP: the rate the hole deepens (m/s)
     return {
         'weight_on_bit_mean_n': -float(np.mean(series['wob'])),
         'stick_slip_severity': float(kpi.stick_slip_severity(speed)),
@@ -267,10 +268,10 @@ def _integrate(config, system, spec: MapSpec, steady, hook: float,
         'backward_rotation': int(np.min(speed) < 0),
         'lift_off_count': int(simulator.lift_off_count[0]) - lift_offs,
         'impact_count': int(simulator.impact_count[0]) - impacts,
-        'rop_m_per_s': float(np.mean(series['rop'])),
+        'rop_m_per_s': float((series['hole'][-1] - series['hole'][0]) / (dt * (n - 1))),
         'torque_on_bit_mean_nm': float(np.mean(series['tob'])),
         'mse_pa': float(kpi.mechanical_specific_energy(
-            series['wob'], series['tob'], speed, series['rop'], config.borehole.diameter_m)),
+            series['wob'], series['tob'], speed, rop, config.borehole.diameter_m)),
         'oscillation_frequency_hz': oscillation_frequency(speed, dt),
     }
 
