@@ -105,13 +105,13 @@ def test_steady_points_drill_at_the_laws_steady_rate(coarse_map):
     law = coarse_map.column('steady_rop_m_per_s')[steady]
     assert (law > 0).sum() >= 3 and (law < 0).sum() >= 1           # 3 rad/s and 50 kN: < 0
     assert_allclose(rop, np.maximum(law, 0.0), rtol=0.01, atol=1e-9)
-    area = np.pi * load_config(None, COARSE).borehole.diameter_m ** 2 / 4
-    speed = coarse_map.column('top_drive_speed_rad_per_s')[steady]
-    expected = (coarse_map.column('weight_on_bit_n')[steady] / area
-                + np.abs(coarse_map.column('steady_torque_on_bit_nm')[steady]) * speed
-                / (area * rop))
     cutting = law > 0
-    assert_allclose(coarse_map.column('mse_pa')[steady][cutting], expected[cutting], rtol=0.01)
+    area = np.pi * load_config(None, COARSE).borehole.diameter_m ** 2 / 4
+    speed = coarse_map.column('top_drive_speed_rad_per_s')[steady][cutting]
+    expected = (coarse_map.column('weight_on_bit_n')[steady][cutting] / area
+                + np.abs(coarse_map.column('steady_torque_on_bit_nm')[steady][cutting]) * speed
+                / (area * rop[cutting]))
+    assert_allclose(coarse_map.column('mse_pa')[steady][cutting], expected, rtol=0.01)
 
 
 def test_backward_rotation_is_flagged_from_the_bit_speed(coarse_map):
