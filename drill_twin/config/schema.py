@@ -352,17 +352,28 @@ class ReducedBasis:
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class Integration:
-    """Implicit Newmark (average acceleration) on the reduced model."""
+    """
+    Implicit Newmark (average acceleration) on the reduced model.
+
+    contact_substeps: 1 (a fixed step) or 2, 4 (default), 8, 16: a member whose step makes
+    a node touch or leave the borehole wall integrates that step again on dt / contact_substeps
+    (the penalty law's kink makes the trapezoidal rule gain or lose energy at 5 ms;
+    dynamics/simulator.py, docs/LATERAL.md). No cost while nothing touches the wall.
+    """
 
     time_step_s: float
     tolerance: float
     max_iterations: int
+    contact_substeps: int = 4
 
     def __post_init__(self):
         _positive(self, 'time_step_s', 'tolerance')
         if self.max_iterations < 1:
             raise ConfigValueError('max_iterations',
                                    f'must be at least 1, got {self.max_iterations}')
+        if self.contact_substeps not in (1, 2, 4, 8, 16):
+            raise ConfigValueError('contact_substeps',
+                                   f'must be 1, 2, 4, 8 or 16, got {self.contact_substeps}')
         _at_most(self, 'time_step_s', TIME_STEP_MAX_S, TIME_STEP_REASON)
         _at_most(self, 'tolerance', TOLERANCE_MAX, TOLERANCE_REASON)
         _at_most(self, 'max_iterations', ITERATIONS_MAX, ITERATIONS_REASON)

@@ -11,7 +11,10 @@ with the prestress and fluid stiffness) changes by the work of the forces on the
 axial columns, and the linear model does not couple them). Every term is accumulated along the
 trapezoidal path of the average-acceleration Newmark step, W += (f_n + f_n+1) . (u_n+1 - u_n)
 / 2, for which the identity holds exactly when the steps are converged; its residual
-(:meth:`LateralEnergyBalance.closure_j`) measures the iteration error. A term with W > 0 feeds
+(:meth:`LateralEnergyBalance.closure_j`) measures the iteration error and the share of the
+steps integrated again on sub-steps (failed steps, and the steps in which a node touches or
+leaves the wall when ``integration.contact_substeps`` > 1: the path inside them is finer
+than the full step's trapezoid the balance accumulates). A term with W > 0 feeds
 the lateral motion; the energy it brings comes from the axial and torsional motion it also
 acts on (the top drive in the end).
 """

@@ -180,6 +180,9 @@ class Simulator:
         self.retries_by_member = np.zeros(self.members, dtype=int)
         self.substeps = 0
         """Sub-steps attempted in those retries (successful or not)."""
+        self.contact_refinements = 0
+        """Member-steps integrated again on dt / integration.contact_substeps because a node
+        touched or left the wall in them (all members)."""
         self._on_bottom = self.on_bottom()
         self._observer = None
         # The rig's drives (issue 13, docs/DRIVES.md): with top_drive.mode dynamic or a
@@ -313,6 +316,9 @@ class Simulator:
             self.top_drive.speed_rad_per_s = start_speed
             raise SimulationDiverged(result.message, new_state.time_s,
                                      np.flatnonzero(~result.converged))
+        if self.config.integration.contact_substeps > 1:
+            new_state, result = self._refine_contact_changes(new_state, result, start_speed,
+                                                             speed)
         previous = self.last
         self.state, self.last = new_state, result.forces
         if self.last.contact_tangent is not None or previous.contact_tangent is not None:
@@ -379,9 +385,43 @@ class Simulator:
                          error=np.where(converged & ~result.converged, 0.0, result.error))
         return new_state, merged, retries
 
-    def _substep(self, member: int, start_speed: float, speed: float):
+    def _refine_contact_changes(self, new_state: BatchState, result: StepResult,
+                                start_speed: float, speed: float):
         """
-        Member ``member`` over [t, t + dt] on sub-steps.
+        Integrate again on dt / contact_substeps the members whose wall contact changed.
+
+        A node that touches or leaves the wall within a step puts the kink of the penalty law
+        inside it, where the trapezoidal rule's work is wrong by up to k p (dr - p) / 2 (p the
+        penetration at the end that touches, dr the radial travel): finer steps there bring
+        the wall's net work to zero (docs/LATERAL.md, section 3). A member whose refinement
+        fails keeps its full step.
+        """
+        before = self.last.contact.in_contact
+        after = result.forces.contact.in_contact
+        changed = np.flatnonzero(np.any(before != after, axis=1))
+        if changed.size == 0:
+            return new_state, result
+        finest = int(round(math.log2(self.config.integration.contact_substeps)))
+        forces = result.forces
+        refined = []
+        with np.errstate(invalid='ignore', over='ignore', divide='ignore'):
+            for member in changed:
+                outcome, attempts = self._substep(member, start_speed, speed, finest)
+                self.substeps += attempts
+                if outcome is None:
+                    continue
+                state, evaluation = outcome
+                for name in ('q', 'q_rate', 'q_acceleration', 'hole_u'):
+                    getattr(new_state, name)[member] = getattr(state, name)[0]
+                forces = _with_member(forces, member, evaluation)
+                refined.append(member)
+        self.contact_refinements += len(refined)
+        self.integrator.forget(np.array(refined, dtype=int))
+        return new_state, replace(result, forces=forces)
+
+    def _substep(self, member: int, start_speed: float, speed: float, finest: int = 1):
+        """
+        Member ``member`` over [t, t + dt] on sub-steps of dt / 2**finest or finer.
 
         ((state, forces), attempts), or (None, attempts) if dt / 2**SUBSTEP_LEVELS fails. The
         top speed is interpolated linearly (the top drive's acceleration is constant over the
@@ -391,7 +431,7 @@ class Simulator:
         state = self.state.take([member])
         hook = self.hook_load_command_n
         hook = hook[[member]] if np.ndim(hook) else hook
-        done, level, attempts, evaluation = 0, 1, 0, None
+        done, level, attempts, evaluation = 0, finest, 0, None
         while done < units:
             size = units >> level
             integrator = self._substep_integrator(level, member)
@@ -401,7 +441,7 @@ class Simulator:
             if result.success:
                 state, evaluation = new, result.forces
                 done += size
-                if level > 1 and done % (2 * size) == 0:
+                if level > finest and done % (2 * size) == 0:
                     level -= 1                          # back up towards the full step
             elif level == SUBSTEP_LEVELS:
                 return None, attempts
