@@ -393,7 +393,7 @@ class Simulator:
         A node that touches or leaves the wall within a step puts the kink of the penalty law
         inside it, where the trapezoidal rule's work is wrong by up to k p (dr - p) / 2 (p the
         penetration at the end that touches, dr the radial travel): finer steps there bring
-        the wall's net work to zero (docs/LATERAL.md, section 3). A member whose refinement
+        the wall's net work to zero (docs/LATERAL.md, section 4). A member whose refinement
         fails keeps its full step.
         """
         before = self.last.contact.in_contact
