@@ -152,6 +152,7 @@ class Simulator:
                                             integration.tolerance, integration.max_iterations,
                                             germs)
         self._substep_integrators: dict[int, NewmarkIntegrator] = {}
+        self._contact_integrator: NewmarkIntegrator | None = None
         self.law = BitRockLaw.from_config(config.bit_rock)
         self.dt = integration.time_step_s
         self.reset_listeners = []
@@ -393,31 +394,66 @@ class Simulator:
         A node that touches or leaves the wall within a step puts the kink of the penalty law
         inside it, where the trapezoidal rule's work is wrong by up to k p (dr - p) / 2 (p the
         penetration at the end that touches, dr the radial travel): finer steps there bring
-        the wall's net work to zero (docs/LATERAL.md, section 4). A member whose refinement
-        fails keeps its full step.
+        the wall's net work to zero (docs/LATERAL.md, section 4). The members concerned are
+        integrated together, as one batch on the finer step; if that fails, member by member
+        on the retry's sub-steps, and a member that fails even so keeps its full step.
         """
         before = self.last.contact.in_contact
         after = result.forces.contact.in_contact
         changed = np.flatnonzero(np.any(before != after, axis=1))
         if changed.size == 0:
             return new_state, result
-        finest = int(round(math.log2(self.config.integration.contact_substeps)))
-        forces = result.forces
-        refined = []
+        count = self.config.integration.contact_substeps
         with np.errstate(invalid='ignore', over='ignore', divide='ignore'):
-            for member in changed:
-                outcome, attempts = self._substep(member, start_speed, speed, finest)
-                self.substeps += attempts
-                if outcome is None:
-                    continue
-                state, evaluation = outcome
-                for name in ('q', 'q_rate', 'q_acceleration', 'hole_u'):
-                    getattr(new_state, name)[member] = getattr(state, name)[0]
-                forces = _with_member(forces, member, evaluation)
-                refined.append(member)
+            outcome = self._fine_steps(changed, start_speed, speed, count)
+            if outcome is not None:
+                refined, (state, evaluation) = changed, outcome
+                self.substeps += count
+            else:
+                finest = int(round(math.log2(count)))
+                refined, states, evaluations = [], [], []
+                for member in changed:
+                    single, attempts = self._substep(member, start_speed, speed, finest)
+                    self.substeps += attempts
+                    if single is not None:
+                        refined.append(member)
+                        states.append(single[0])
+                        evaluations.append(single[1])
+                if not refined:
+                    return new_state, result
+                refined = np.array(refined, dtype=int)
+                state = _stack_states(states)
+                evaluation = _stack_evaluations(evaluations)
+        for name in ('q', 'q_rate', 'q_acceleration', 'hole_u'):
+            getattr(new_state, name)[refined] = getattr(state, name)
         self.contact_refinements += len(refined)
-        self.integrator.forget(np.array(refined, dtype=int))
-        return new_state, replace(result, forces=forces)
+        self.integrator.forget(refined)
+        return new_state, replace(result, forces=_with_members(result.forces, refined,
+                                                               evaluation))
+
+    def _fine_steps(self, members: np.ndarray, start_speed: float, speed: float, count: int):
+        """
+        ``members`` together over [t, t + dt] on ``count`` steps of dt / count.
+
+        (state, forces) of those members, or None if a step fails for any of them.
+        """
+        integrator = self._contact_integrator
+        if integrator is None or integrator.time_step_s != self.dt / count:
+            integrator = self._contact_integrator = self.integrator.with_time_step(
+                self.dt / count)
+        germ = self.integrator.germ
+        integrator.germ = None if germ is None else germ[members]
+        integrator.forget(None)
+        state = self.state.take(members)
+        hook = self.hook_load_command_n
+        hook = np.asarray(hook)[members] if np.ndim(hook) else hook
+        result = None
+        for j in range(count):
+            target = start_speed + (speed - start_speed) * (j + 1) / count
+            state, result = integrator.step(state, target, hook)
+            if not result.success:
+                return None
+        return state, result.forces
 
     def _substep(self, member: int, start_speed: float, speed: float, finest: int = 1):
         """
@@ -654,29 +690,63 @@ class _Observer:
 def _with_member(evaluation: ForceEvaluation, member: int,
                  single: ForceEvaluation) -> ForceEvaluation:
     """Return ``evaluation`` with row ``member`` replaced by the one-member ``single``."""
+    return _with_members(evaluation, np.array([member]), single)
+
+
+def _with_members(evaluation: ForceEvaluation, members: np.ndarray,
+                  rows: ForceEvaluation) -> ForceEvaluation:
+    """Return ``evaluation`` with the rows ``members`` (indices) replaced by ``rows``'."""
     def put(array, row):
         out = array.copy()
-        out[member] = row[0]
+        out[members] = row
         return out
 
     tangent = None
-    if evaluation.contact_tangent is not None or single.contact_tangent is not None:
+    if evaluation.contact_tangent is not None or rows.contact_tangent is not None:
         shape = evaluation.contact.in_contact.shape + (2, 2)
         mine = (evaluation.contact_tangent if evaluation.contact_tangent is not None
                 else np.zeros(shape))
-        row = (single.contact_tangent if single.contact_tangent is not None
-               else np.zeros((1,) + shape[1:]))
+        row = (rows.contact_tangent if rows.contact_tangent is not None
+               else np.zeros((len(members),) + shape[1:]))
         tangent = put(mine, row)
     contact = ContactForces(put(evaluation.contact.radial_force_n,
-                                single.contact.radial_force_n),
-                            put(evaluation.contact.in_contact, single.contact.in_contact))
-    return replace(evaluation, full=put(evaluation.full, single.full),
-                   modal=put(evaluation.modal, single.modal),
-                   weight_on_bit_n=put(evaluation.weight_on_bit_n, single.weight_on_bit_n),
-                   torque_on_bit_nm=put(evaluation.torque_on_bit_nm, single.torque_on_bit_nm),
-                   rop_m_per_s=put(evaluation.rop_m_per_s, single.rop_m_per_s),
+                                rows.contact.radial_force_n),
+                            put(evaluation.contact.in_contact, rows.contact.in_contact))
+    return replace(evaluation, full=put(evaluation.full, rows.full),
+                   modal=put(evaluation.modal, rows.modal),
+                   weight_on_bit_n=put(evaluation.weight_on_bit_n, rows.weight_on_bit_n),
+                   torque_on_bit_nm=put(evaluation.torque_on_bit_nm, rows.torque_on_bit_nm),
+                   rop_m_per_s=put(evaluation.rop_m_per_s, rows.rop_m_per_s),
                    bit_speed_rad_per_s=put(evaluation.bit_speed_rad_per_s,
-                                           single.bit_speed_rad_per_s),
-                   lifted=put(evaluation.lifted, single.lifted),
-                   bit_jacobian=put(evaluation.bit_jacobian, single.bit_jacobian),
+                                           rows.bit_speed_rad_per_s),
+                   lifted=put(evaluation.lifted, rows.lifted),
+                   bit_jacobian=put(evaluation.bit_jacobian, rows.bit_jacobian),
                    contact=contact, contact_tangent=tangent)
+
+
+def _stack_states(states: list) -> BatchState:
+    """Return one-member states (same time and drive) as one state of their members."""
+    first = states[0]
+    return replace(first, **{name: np.concatenate([getattr(s, name) for s in states])
+                             for name in ('q', 'q_rate', 'q_acceleration', 'hole_u')})
+
+
+def _stack_evaluations(evaluations: list) -> ForceEvaluation:
+    """Return one-member evaluations as one evaluation of their members."""
+    first = evaluations[0]
+
+    def stack(name):
+        return np.concatenate([getattr(e, name) for e in evaluations])
+
+    tangents = [e.contact_tangent for e in evaluations]
+    tangent = None
+    if any(t is not None for t in tangents):
+        shape = first.contact.in_contact.shape[1:] + (2, 2)
+        tangent = np.concatenate([np.zeros((1,) + shape) if t is None else t
+                                  for t in tangents])
+    contact = ContactForces(np.concatenate([e.contact.radial_force_n for e in evaluations]),
+                            np.concatenate([e.contact.in_contact for e in evaluations]))
+    return replace(first, **{name: stack(name) for name in (
+        'full', 'modal', 'weight_on_bit_n', 'torque_on_bit_nm', 'rop_m_per_s',
+        'bit_speed_rad_per_s', 'lifted', 'bit_jacobian')},
+        contact=contact, contact_tangent=tangent)
