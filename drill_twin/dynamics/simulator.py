@@ -12,6 +12,9 @@ doubled back after every success (as far as dt/2, aligned on the step), one memb
 time so that no member depends on the rest of its batch. Only when even dt/16 fails does
 ``step`` raise :class:`SimulationDiverged` naming the member (the twin then resets it). Steps
 that need no retry cost what they did: the sub-step integrators are built on first use.
+A step in which a member's nodes touch or leave the borehole wall is integrated again on
+dt / ``integration.contact_substeps`` (those members together), so that the kink of the
+penalty law does not make the wall gain or lose energy (docs/LATERAL.md, section 4).
 
 Bit and hole. The hole bottom is the deepest the bit has been (it starts where the bit is):
 the bit is on bottom when it is there, off bottom above it (no rock force; a hook load above
@@ -695,7 +698,7 @@ def _with_member(evaluation: ForceEvaluation, member: int,
 
 def _with_members(evaluation: ForceEvaluation, members: np.ndarray,
                   rows: ForceEvaluation) -> ForceEvaluation:
-    """Return ``evaluation`` with the rows ``members`` (indices) replaced by ``rows``'."""
+    """Return ``evaluation`` with the rows ``members`` (indices) replaced by those of ``rows``."""
     def put(array, row):
         out = array.copy()
         out[members] = row
