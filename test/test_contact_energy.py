@@ -106,6 +106,30 @@ def test_a_batch_refines_its_members_as_each_alone():
                                    atol=1e-12 * np.abs(simulator.state.q).max())
 
 
+def test_member_by_member_refinement_is_the_batchs(monkeypatch):
+    """
+    When the batch's fine steps fail, the members are refined one by one: the same result.
+
+    The fallback (per-member sub-steps from dt/4, stacked back into the batch) against the
+    batch's own fine steps, over 1 s of impacts of two members: equal to the iteration's
+    tolerance (1e-6), not to rounding, because the fallback verifies the first iterate of
+    every sub-step where the batch accepts it on the measured contraction rate.
+    """
+    scale = (60.0, 45.0)
+    batch = _thrown(4, members=2, scale=scale)
+    fallback = _thrown(4, members=2, scale=scale)
+    monkeypatch.setattr(fallback, '_fine_steps', lambda *arguments: None)
+    with threadpool_limits(limits=1, user_api='blas'):
+        for _ in range(200):
+            batch.step()
+            fallback.step()
+    assert fallback.contact_refinements == batch.contact_refinements > 10
+    np.testing.assert_allclose(fallback.state.q, batch.state.q, rtol=1e-6,
+                               atol=1e-9 * np.abs(batch.state.q).max())
+    np.testing.assert_allclose(fallback.last.contact.radial_force_n,
+                               batch.last.contact.radial_force_n, rtol=1e-6, atol=1.0)
+
+
 def test_contact_substeps_must_be_a_power_of_two_up_to_16():
     with pytest.raises(ConfigError, match='contact_substeps'):
         config_with({'integration': {'contact_substeps': 3}})

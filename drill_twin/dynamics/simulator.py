@@ -411,13 +411,11 @@ class Simulator:
             outcome = self._fine_steps(changed, start_speed, speed, count)
             if outcome is not None:
                 refined, (state, evaluation) = changed, outcome
-                self.substeps += count
             else:
                 finest = int(round(math.log2(count)))
                 refined, states, evaluations = [], [], []
                 for member in changed:
-                    single, attempts = self._substep(member, start_speed, speed, finest)
-                    self.substeps += attempts
+                    single, _ = self._substep(member, start_speed, speed, finest)
                     if single is not None:
                         refined.append(member)
                         states.append(single[0])
