@@ -258,7 +258,7 @@ def _integrate(config, system, spec: MapSpec, steady, hook: float,
         series['wob'][j] = last.weight_on_bit_n[0]
         series['tob'][j] = last.torque_on_bit_nm[0]
     speed = series['speed']
-    rop = np.gradient(series['hole'], dt)        # ROP: the rate the hole deepens (m/s)
+    rop = (series['hole'][-1] - series['hole'][0]) / (dt * (n - 1))   # the hole's rate (m/s)
     return {
         'weight_on_bit_mean_n': -float(np.mean(series['wob'])),
         'stick_slip_severity': float(kpi.stick_slip_severity(speed)),
@@ -268,10 +268,10 @@ def _integrate(config, system, spec: MapSpec, steady, hook: float,
         'backward_rotation': int(np.min(speed) < 0),
         'lift_off_count': int(simulator.lift_off_count[0]) - lift_offs,
         'impact_count': int(simulator.impact_count[0]) - impacts,
-        'rop_m_per_s': float((series['hole'][-1] - series['hole'][0]) / (dt * (n - 1))),
+        'rop_m_per_s': float(rop),
         'torque_on_bit_mean_nm': float(np.mean(series['tob'])),
         'mse_pa': float(kpi.mechanical_specific_energy(
-            series['wob'], series['tob'], speed, rop, config.borehole.diameter_m)),
+            series['wob'], series['tob'], speed, np.full(n, rop), config.borehole.diameter_m)),
         'oscillation_frequency_hz': oscillation_frequency(speed, dt),
     }
 
