@@ -340,7 +340,7 @@ def test_the_torque_bound_of_coupled_germs_is_each_members_law_evaluated_directl
     germs = germs_for_realizations(0.3, 7, range(12))
     assert np.min(np.abs(germs[:, 0, 1])) > 1e-3
     guard = StateGuard(system, law)
-    weight = guard.envelope.weight_on_bit_max_n
+    weight = guard.impact_weight_on_bit_n
     omega = np.linspace(0.01, ENVELOPE_TOP_DRIVE_SPEED_MAX_RAD_PER_S, 400)
     rop = np.clip(law.steady_rop(omega, -weight), 0.0, PLAUSIBLE_BLOCK_SPEED_M_PER_S)
     force, torque = law.mean(rop, omega)
@@ -353,3 +353,40 @@ def test_the_torque_bound_of_coupled_germs_is_each_members_law_evaluated_directl
                                rtol=1e-12)
     guard.set_germs(None)
     assert guard.torque_on_bit_max_nm == pytest.approx(FORCE_MULTIPLE * mean, rel=1e-12)
+
+
+def test_the_torque_the_law_pairs_with_an_accepted_landing_is_accepted():
+    """
+    A TOB is never refused at a WOB the guard accepts.
+
+    The mean model drills at 5.2 rad/s with 250 kN on the bit; the hook load then rises by
+    200 kN at once: the string springs up, the bit lifts off and lands again, each landing a
+    WOB spike far above the envelope's 300 kN (the rock stops the bit within one step). At
+    every step whose WOB is inside its bound, the law's TOB is inside the TOB bound; the run
+    reaches torques above the earlier bound (three times the law's torque at 300 kN), which
+    reset members whose WOB the guard accepted (envelope sweep, 2026-12-02).
+    """
+    from drill_twin.twin.envelope import (ENVELOPE_TOP_DRIVE_SPEED_MAX_RAD_PER_S,
+                                          largest_torque_on_bit_nm)
+    config = load_config(None, ['integration.time_step_s=0.005'])
+    with threadpool_limits(limits=1, user_api='blas'):
+        simulator = Simulator(config)
+        guard = StateGuard(simulator.system, simulator.law)
+        weight = simulator.hook_load_command_n - config.bit_rock.static_weight_on_bit_n
+        simulator.set_top_drive_speed(5.2)
+        simulator.set_hook_load(weight - 250e3)
+        for _ in range(2000):
+            simulator.step()
+        simulator.set_hook_load(weight - 50e3)
+        wob, tob = [], []
+        for _ in range(1000):
+            simulator.step()
+            wob.append(-float(simulator.last.weight_on_bit_n[0]))
+            tob.append(float(simulator.last.torque_on_bit_nm[0]))
+    wob, tob = np.array(wob), np.abs(tob)
+    accepted = np.abs(wob) <= guard.weight_on_bit_max_n
+    earlier = FORCE_MULTIPLE * largest_torque_on_bit_nm(
+        simulator.law, ENVELOPE_TOP_DRIVE_SPEED_MAX_RAD_PER_S, guard.envelope.weight_on_bit_max_n)
+    assert np.max(wob) > ENVELOPE_WEIGHT_ON_BIT_MAX_N            # landings hit hard
+    assert np.max(tob[accepted]) > earlier                       # the case of the sweep
+    assert np.all(tob[accepted] <= guard.torque_on_bit_max_nm)

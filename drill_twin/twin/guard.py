@@ -16,9 +16,12 @@ multiples stated here:
   (stick-slip peaks reach two to three times the top speed);
 - |WOB| <= FORCE_MULTIPLE x (WOB_max + Z v_block): the envelope's weight on bit plus the
   impact of a landing at block speed on the bottom section's impedance Z;
-- |TOB| <= FORCE_MULTIPLE x the largest torque of the member's bit-rock law over the envelope
-  (the mean law, or the member's random law of Eq. 50: at delta = 0.1 up to 1.2 times the mean
-  law's);
+- |TOB| <= FORCE_MULTIPLE x the largest torque of the member's bit-rock law over the envelope's
+  speeds at the same force scale as the WOB bound, WOB_max + Z v_block (the mean law, or the
+  member's random law of Eq. 50: at delta = 0.1 up to 1.2 times the mean law's). The law pairs
+  every WOB with a torque: a landing's WOB that the bound accepts brings the torque the law
+  gives at that WOB, which is then accepted too (before 2026-12-02 the torque scale was the law's
+  at WOB_max only, and the landings' TOB reset members whose WOB was inside its bound);
 - with wall contact modelled, every node's radial displacement <= its clearance plus the
   penetration PENETRATION_MULTIPLE x m_e c Omega^2 / k_ip (the wall force that holds the
   heaviest element whirling at the clearance at the envelope's top speed);
@@ -66,8 +69,9 @@ class StateGuard:
         e = self.envelope
         block = PLAUSIBLE_BLOCK_SPEED_M_PER_S
         self.axial_speed_max_m_per_s = SPEED_MULTIPLE * block
-        self.weight_on_bit_max_n = FORCE_MULTIPLE * (e.weight_on_bit_max_n
-                                                     + e.axial_impedance_n_s_per_m * block)
+        self.impact_weight_on_bit_n = e.weight_on_bit_max_n + e.axial_impedance_n_s_per_m * block
+        """The force scale of the WOB and TOB bounds: the envelope's WOB and a landing's (N)."""
+        self.weight_on_bit_max_n = FORCE_MULTIPLE * self.impact_weight_on_bit_n
         self.law = law
         self.set_germs(germs)
         stiffness = config.borehole.contact_stiffness_n_per_m
@@ -106,7 +110,7 @@ class StateGuard:
         """
         self.torque_on_bit_max_nm = FORCE_MULTIPLE * np.maximum(
             largest_torque_on_bit_nm(self.law, ENVELOPE_TOP_DRIVE_SPEED_MAX_RAD_PER_S,
-                                     self.envelope.weight_on_bit_max_n, germs), TORQUE_FLOOR_NM)
+                                     self.impact_weight_on_bit_n, germs), TORQUE_FLOOR_NM)
         """Scalar (mean law) or (m,) (the members' random laws) (N m)."""
 
     def rotation_speed_max(self, top_speed_rad_per_s: float) -> float:
