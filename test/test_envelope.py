@@ -244,7 +244,10 @@ class EnvelopeRun:
         radial = np.hypot(u[:, sim.system.field(2)], u[:, sim.system.field(4)])
         assert np.all(radial <= self.clearance + PENETRATION_M)
         assert np.all(o.hole_depth_m >= self.hole)                 # never shallower
-        assert np.all(o.bit_depth_m <= o.hole_depth_m + 1e-6)
+        # The bit presses the rock under it (a spring k) by -WOB / k.
+        stiffness = sim.config.bit_rock.contact_stiffness_n_per_m
+        pressed = np.maximum(-o.weight_on_bit_n, 0.0) / stiffness
+        assert np.all(o.bit_depth_m <= o.hole_depth_m + pressed + 1e-6)
         self.hole = o.hole_depth_m.copy()
         self.lifted |= ~o.on_bottom
         self.landed |= o.landings_so_far > 0

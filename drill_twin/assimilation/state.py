@@ -2,7 +2,8 @@
 The analysed state of a batch of members, read from and written back into a Simulator.
 
 Per member the state vector is, in order: the reduced coordinates q of the analysed blocks,
-their rates, the hole's offset below the bit (m, >= 0: 0 on bottom) and, with parameters
+their rates, the hole's offset below the bit (m, >= 0 off bottom; on bottom 0, or minus the
+depth by which the bit presses a compliant rock) and, with parameters
 'germ', the bit-rock germ's three Cholesky coordinates (log L11, L12, log L22) with
 [G_b] = L^T L, L upper triangular (any value is a symmetric positive-definite germ).
 
@@ -125,7 +126,8 @@ class MemberState:
         """
         Put state vectors (members, size) back.
 
-        A member on bottom before stays on bottom (offset 0); an offset is never negative; a
+        A member on bottom before stays on bottom (pressing a compliant rock as deep as before,
+        the force's change acting from the next step); an analysed offset is never negative; a
         germ is kept within :data:`GERM_DIAGONAL_LIMIT`'s bounds. Raises ValueError for a
         non-finite vector (nothing is written).
         """
@@ -140,7 +142,8 @@ class MemberState:
         q, rate = state.q[:m].copy(), state.q_rate[:m].copy()
         q[:, self.columns] = vectors[:, :k]
         rate[:, self.columns] = vectors[:, k:2 * k]
-        offset = np.where(was_on_bottom, 0.0, np.maximum(vectors[:, 2 * k], 0.0))
+        pressed = np.minimum(sim.hole_u()[:m] - state.q[:m] @ self._bit_row, 0.0)
+        offset = np.where(was_on_bottom, pressed, np.maximum(vectors[:, 2 * k], 0.0))
         germs = (coordinates_to_germ(bounded_coordinates(vectors[:, 2 * k + 1:2 * k + 4]))
                  if self.parameters == 'germ' else None)
         sim.set_members(q, rate, q @ self._bit_row + offset, germs)

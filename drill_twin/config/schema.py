@@ -242,10 +242,16 @@ class BitRock:
     static_weight_on_bit_n: float
     random_law_rop_scale_m_per_s: float = 1e-4
     """Near ROP = 0 the random law is blended into the mean law over this ROP scale."""
+    contact_stiffness_n_per_m: float | None = None
+    """The rock's contact stiffness under the bit (not in the paper): the bit resting on bottom
+    presses the rock elastically by f / k, and a landing is stopped by that spring instead of
+    within one time step. None: a rigid rock (the law alone)."""
 
     def __post_init__(self):
         _positive(self, 'a2_m_per_n_s', 'regularization_rad_per_s',
                   'random_law_rop_scale_m_per_s')
+        if self.contact_stiffness_n_per_m is not None:
+            _positive(self, 'contact_stiffness_n_per_m')
         _non_negative(self, 'a1_m_per_s', 'a3_m_per_rad', 'a4_n_rad', 'a5_n_m')
         if not math.isfinite(self.static_weight_on_bit_n):
             raise ConfigValueError('static_weight_on_bit_n', 'must be finite')

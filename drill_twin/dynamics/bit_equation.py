@@ -18,6 +18,12 @@ The rock's law, with the hole's bottom, is a monotone graph in ROP at a given om
   :meth:`BitRockLaw.torque_of_force`;
 - on bottom and resting (ROP = rho): any f between the law's force at rho and 0 (a unilateral
   contact; at omega <= 0, where the bit does not cut, every f <= 0).
+- with a compliant rock (``bit_rock.contact_stiffness_n_per_m`` = k) the resting branch is a
+  spring instead: ROP = rho - s F1 with s = gamma / (beta dt k), the end-of-step velocity at
+  which the bit presses the rock by -F1 / k; rho is then measured to the undeformed bottom and
+  is negative where the bit presses it already. The graph is ROP = max(rho - s F1, R(-P,
+  omega)) for P > 0: continuous in P, increasing for the mean law (F1 = -P), and the same at
+  s = 0; the hole's bottom ends where the bit ends less -F1 / k.
 
 It is parametrised by one increasing number P: P <= 0 is the free bit (ROP = rho* + P, F = 0,
 rho* = max(rho, R(0, omega))); P > 0 is on bottom with the mean force f = -P and
@@ -66,16 +72,18 @@ EXPANSIONS = 80
 """Doublings allowed when a bracket is searched for (random germs only)."""
 
 
-def solve_bit_equation(law: BitRockLaw, b, c, rho, germ=None, omega_guess=None):
+def solve_bit_equation(law: BitRockLaw, b, c, rho, germ=None, omega_guess=None, slope=None):
     """
     Solve the module's equation for m members.
 
     :param law: the bit-rock law.
     :param b: (m, 2) bit velocities (ROP m/s, omega rad/s) with no rock force.
     :param c: (m, 2) positive flexibilities over the step ((m/s)/N, (rad/s)/(N m)).
-    :param rho: (m,) ROP at which the bit reaches the hole bottom at the end of the step (>= 0).
+    :param rho: (m,) ROP at which the bit reaches the hole bottom at the end of the step (>= 0
+        on a rigid rock; negative where the bit presses a compliant rock already).
     :param germ: (m, 2, 2) random germs or None (mean law).
     :param omega_guess: (m,) a start for omega (the iterate's), or None.
+    :param slope: (m,) the resting branch's slope (m/s)/N of a compliant rock, or None (rigid).
 
     :return: (rop, omega, force, torque, lifted, on_bottom, cutting), arrays of shape (m,): lifted
         when the rock's axial force is zero.
@@ -84,18 +92,20 @@ def solve_bit_equation(law: BitRockLaw, b, c, rho, germ=None, omega_guess=None):
     c = np.ascontiguousarray(c, dtype=float)
     rho = np.ascontiguousarray(rho, dtype=float)
     m = b.shape[0]
+    slope = np.zeros(m) if slope is None else np.ascontiguousarray(
+        np.broadcast_to(slope, (m,)), dtype=float)
     guess = b[:, 1].copy() if omega_guess is None else np.array(omega_guess, dtype=float)
     random = germ is not None
     germs = np.ascontiguousarray(germ, dtype=float) if random else np.eye(2)[None]
     out = np.empty((7, m))
-    solve_batch(b, c, rho, germs, random, guess, law.constants, out)
+    solve_batch(b, c, rho, slope, germs, random, guess, law.constants, out)
     return (out[0], out[1], out[2], out[3], out[4] > 0, out[5] > 0, out[6])
 
 
 @kernel
-def solve_batch(b, c, rho, germ, random, guess, k, out):
+def solve_batch(b, c, rho, slope, germ, random, guess, k, out):
     """
-    solve_one for every row of b, c (m, 2), rho, guess (m,).
+    solve_one for every row of b, c (m, 2), rho, slope, guess (m,).
 
     Out (7, m): rop, omega, force, torque, lifted, on bottom, cutting rate (flags as 0/1).
     """
@@ -103,7 +113,7 @@ def solve_batch(b, c, rho, germ, random, guess, k, out):
     for i in range(b.shape[0]):
         g = min(i, last)
         rop, omega, f1, f2, parameter, cut = solve_one(
-            b[i, 0], b[i, 1], c[i, 0], c[i, 1], rho[i], germ[g, 0, 0], germ[g, 0, 1],
+            b[i, 0], b[i, 1], c[i, 0], c[i, 1], rho[i], slope[i], germ[g, 0, 0], germ[g, 0, 1],
             germ[g, 1, 1], random, guess[i], k)
         out[0, i], out[1, i], out[2, i], out[3, i] = rop, omega, f1, f2
         out[4, i] = 1.0 if f1 >= 0.0 else 0.0
@@ -112,7 +122,7 @@ def solve_batch(b, c, rho, germ, random, guess, k, out):
 
 
 @kernel
-def solve_one(b1, b2, c1, c2, rho, g11, g12, g22, random, guess, k):
+def solve_one(b1, b2, c1, c2, rho, slope, g11, g12, g22, random, guess, k):
     """One member's solve (module docstring): (rop, omega, F1, F2, P, cutting rate)."""
     germ = (g11, g12, g22, random)
     if not b1 > maximum(rho, cutting_rate(0.0, b2, k)):
@@ -125,11 +135,11 @@ def solve_one(b1, b2, c1, c2, rho, g11, g12, g22, random, guess, k):
     # doublings: G(0) = max(rho, R(0, b2)) - b1 < 0 on the left, and F1 ~ G11 f for large
     # |f| makes G -> +inf on the right.
     low_b2, high_b2 = minimum(0.0, b2), maximum(0.0, b2)
-    centre = _mean_axial_root(maximum(minimum(guess, high_b2), low_b2), b1, c1, rho, k)
+    centre = _mean_axial_root(maximum(minimum(guess, high_b2), low_b2), b1, c1, rho, slope, k)
     half = 0.02 * centre + 1.0
     lo, hi = maximum(centre - half, 0.0), centre + half
-    r_lo = _axial_residual(lo, b1, b2, c1, c2, rho, germ, warm, k)
-    r_hi = _axial_residual(hi, b1, b2, c1, c2, rho, germ, warm, k)
+    r_lo = _axial_residual(lo, b1, b2, c1, c2, rho, slope, germ, warm, k)
+    r_hi = _axial_residual(hi, b1, b2, c1, c2, rho, slope, germ, warm, k)
     for _ in range(EXPANSIONS):
         left = r_lo > 0
         right = not left and r_hi < 0
@@ -139,11 +149,11 @@ def solve_one(b1, b2, c1, c2, rho, g11, g12, g22, random, guess, k):
         if left:
             hi, r_hi = lo, r_lo
             lo = maximum(centre - half, 0.0)
-            r_lo = _axial_residual(lo, b1, b2, c1, c2, rho, germ, warm, k)
+            r_lo = _axial_residual(lo, b1, b2, c1, c2, rho, slope, germ, warm, k)
         else:
             lo, r_lo = hi, r_hi
             hi = centre + half
-            r_hi = _axial_residual(hi, b1, b2, c1, c2, rho, germ, warm, k)
+            r_hi = _axial_residual(hi, b1, b2, c1, c2, rho, slope, germ, warm, k)
     # Illinois on the axial equation (see _illinois_step for the rules).
     x, done = _illinois_start(lo, hi, r_lo, r_hi, FORCE_TOLERANCE, FORCE_RELATIVE_TOLERANCE,
                               ROP_TOLERANCE)
@@ -153,34 +163,34 @@ def solve_one(b1, b2, c1, c2, rho, g11, g12, g22, random, guess, k):
             break
         trial, bisect, count, reference = _illinois_trial(lo, hi, r_lo, r_hi, count,
                                                           reference)
-        r_trial = _axial_residual(trial, b1, b2, c1, c2, rho, germ, warm, k)
+        r_trial = _axial_residual(trial, b1, b2, c1, c2, rho, slope, germ, warm, k)
         x, lo, hi, r_lo, r_hi, last_side, done = _illinois_step(
             x, trial, r_trial, bisect, lo, hi, r_lo, r_hi, last_side, FORCE_TOLERANCE,
             FORCE_RELATIVE_TOLERANCE, ROP_TOLERANCE)
-    omega = _torsion(x, b2, c2, rho, germ, warm[0], k)
-    rop, f1, f2, cut = _point(x, omega, rho, germ, k)
+    omega = _torsion(x, b2, c2, rho, slope, germ, warm[0], k)
+    rop, f1, f2, cut = _point(x, omega, rho, slope, germ, k)
     return rop, omega, f1, f2, x, cut
 
 
 @kernel
-def _axial_residual(parameter, b1, b2, c1, c2, rho, germ, warm, k):
+def _axial_residual(parameter, b1, b2, c1, c2, rho, slope, germ, warm, k):
     """G(P) = ROP(P, omega(P)) - b1 - c1 F1; warm[0]: the last omega found (updated)."""
-    omega = _torsion(parameter, b2, c2, rho, germ, warm[0], k)
+    omega = _torsion(parameter, b2, c2, rho, slope, germ, warm[0], k)
     if np.isfinite(omega):
         warm[0] = omega
-    rop, f1, _, _ = _point(parameter, omega, rho, germ, k)
+    rop, f1, _, _ = _point(parameter, omega, rho, slope, germ, k)
     return rop - b1 - c1 * f1
 
 
 @kernel
-def _torsion_residual(omega, parameter, b2, c2, rho, germ, k):
-    return omega - b2 - c2 * _point(parameter, omega, rho, germ, k)[2]
+def _torsion_residual(omega, parameter, b2, c2, rho, slope, germ, k):
+    return omega - b2 - c2 * _point(parameter, omega, rho, slope, germ, k)[2]
 
 
 @kernel
-def _torsion(parameter, b2, c2, rho, germ, guess, k):
+def _torsion(parameter, b2, c2, rho, slope, germ, guess, k):
     """Solve omega = b2 + c2 F2(P, omega) for omega at given P (bracketed, module docstring)."""
-    r_b2 = _torsion_residual(b2, parameter, b2, c2, rho, germ, k)
+    r_b2 = _torsion_residual(b2, parameter, b2, c2, rho, slope, germ, k)
     if b2 < 0.0:                                        # F2(P, 0) = 0: r(0) = -b2
         lo, hi, r_lo, r_hi = b2, 0.0, r_b2, -b2
     else:
@@ -190,7 +200,7 @@ def _torsion(parameter, b2, c2, rho, germ, guess, k):
         direction = -1.0 if b2 < 0 else 1.0
         for _ in range(EXPANSIONS):
             trial = b2 + direction * reach
-            r_trial = _torsion_residual(trial, parameter, b2, c2, rho, germ, k)
+            r_trial = _torsion_residual(trial, parameter, b2, c2, rho, slope, germ, k)
             if trial < lo:
                 lo, r_lo = trial, r_trial
             if trial > hi:
@@ -199,7 +209,7 @@ def _torsion(parameter, b2, c2, rho, germ, guess, k):
                 break
             reach = 2.0 * reach
     start = maximum(minimum(guess, hi), lo)
-    r_start = _torsion_residual(start, parameter, b2, c2, rho, germ, k)
+    r_start = _torsion_residual(start, parameter, b2, c2, rho, slope, germ, k)
     if np.isfinite(r_start) and _brackets(r_lo, r_hi):  # narrow to [lo, start] or [start, hi]
         if np.sign(r_start) == np.sign(r_lo):
             lo, r_lo = start, r_start
@@ -213,7 +223,7 @@ def _torsion(parameter, b2, c2, rho, germ, guess, k):
             break
         trial, bisect, count, reference = _illinois_trial(lo, hi, r_lo, r_hi, count,
                                                           reference)
-        r_trial = _torsion_residual(trial, parameter, b2, c2, rho, germ, k)
+        r_trial = _torsion_residual(trial, parameter, b2, c2, rho, slope, germ, k)
         x, lo, hi, r_lo, r_hi, last_side, done = _illinois_step(
             x, trial, r_trial, bisect, lo, hi, r_lo, r_hi, last_side, OMEGA_TOLERANCE,
             OMEGA_TOLERANCE, OMEGA_TOLERANCE)
@@ -221,26 +231,30 @@ def _torsion(parameter, b2, c2, rho, germ, guess, k):
 
 
 @inline
-def _mean_axial_root(omega, b1, c1, rho, k):
+def _mean_axial_root(omega, b1, c1, rho, slope, k):
     """P of the mean law's axial equation at a given omega, in closed form."""
     z = omega / np.sqrt(omega * omega + k[5] * k[5])
     r0 = cutting_rate(0.0, omega, k)
     top = maximum(rho, r0)
-    cut_force = (r0 - b1) / (c1 + k[1] * z * z)
-    force = (rho - b1) / c1 if b1 + c1 * cut_force <= rho else cut_force
-    return -force if b1 > top else 0.0
+    # G(P) = max(rho + slope P, R(-P)) - b1 + c1 P: the root of a maximum of two increasing
+    # lines is the smaller of their roots.
+    cutting = (b1 - r0) / (c1 + k[1] * z * z)
+    resting = (b1 - rho) / (c1 + slope)
+    return minimum(cutting, resting) if b1 > top else 0.0
 
 
 @kernel
-def _point(parameter, omega, rho, germ, k):
+def _point(parameter, omega, rho, slope, germ, k):
     """Return the graph's point at P (module docstring): (ROP, F1, F2, cutting rate)."""
     if parameter > 0:
         force = -parameter
         cut = cutting_rate(force, omega, k)
-        rop = maximum(rho, cut)
         torque = torque_of_force(force, omega, cut, k)
-        f1, f2 = randomised_point(force, torque, rop, cut, omega, germ[0], germ[1], germ[2],
+        # The random law at the law's own point (R, omega) of that force; a compliant rock
+        # is pressed by the force it bears, F1.
+        f1, f2 = randomised_point(force, torque, cut, cut, omega, germ[0], germ[1], germ[2],
                                   germ[3], k)
+        rop = maximum(rho - slope * f1, cut)
         return rop, f1, f2, cut
     cut = cutting_rate(0.0, omega, k)
     return maximum(rho, cut) + parameter, 0.0, 0.0, cut

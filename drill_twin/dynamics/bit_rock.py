@@ -53,17 +53,22 @@ class BitRockLaw:
     e: float
     rop_scale: float = 1e-4
     """r of the blend of the random law into the mean law near ROP = 0 (m/s)."""
+    compliance: float = 0.0
+    """1 / k of the rock under the bit (m/N); 0: a rigid rock (``bit_equation``)."""
 
     @classmethod
     def from_config(cls, bit_rock: BitRock) -> 'BitRockLaw':
+        stiffness = bit_rock.contact_stiffness_n_per_m
         return cls(a1=bit_rock.a1_m_per_s, a2=bit_rock.a2_m_per_n_s, a3=bit_rock.a3_m_per_rad,
                    a4=bit_rock.a4_n_rad, a5=bit_rock.a5_n_m, e=bit_rock.regularization_rad_per_s,
-                   rop_scale=bit_rock.random_law_rop_scale_m_per_s)
+                   rop_scale=bit_rock.random_law_rop_scale_m_per_s,
+                   compliance=0.0 if stiffness is None else 1.0 / stiffness)
 
     @property
     def constants(self) -> np.ndarray:
-        """(a1, a2, a3, a4, a5, e, r): the law's constants as the kernels take them."""
-        return np.array([self.a1, self.a2, self.a3, self.a4, self.a5, self.e, self.rop_scale])
+        """(a1, a2, a3, a4, a5, e, r, 1/k): the law's constants as the kernels take them."""
+        return np.array([self.a1, self.a2, self.a3, self.a4, self.a5, self.e, self.rop_scale,
+                         self.compliance])
 
     def mean(self, rop, omega):
         """

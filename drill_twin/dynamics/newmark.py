@@ -258,7 +258,8 @@ class NewmarkIntegrator:
         """
         Return a state at t = 0 with the accelerations that balance Eq. 35 (fixed point).
 
-        hole_u: the hole bottom (m,), or None to put it where the bit is (on bottom).
+        hole_u: the hole bottom (m,), or None to put it where the bit is (on bottom; on a
+        compliant rock, above the bit by the depth its force presses the rock).
         """
         state = BatchState(0.0, np.array(q, dtype=float), np.array(q_rate, dtype=float),
                            np.zeros_like(q, dtype=float), top_angle_rad,
@@ -266,6 +267,17 @@ class NewmarkIntegrator:
         bit_u = state.q @ self.bit_axial_row
         state.hole_u = bit_u.copy() if hole_u is None else np.maximum(
             np.broadcast_to(np.asarray(hole_u, dtype=float), bit_u.shape), bit_u)
+        compliance = self.forces.law.compliance
+        if compliance > 0.0 and self.forces.physics.bit_rock:
+            # A bit on bottom presses a compliant rock by -f / k, f the law's force at the
+            # bit's velocities: the hole's (undeformed) bottom is that much above the bit. A
+            # given hole is kept unless the bit is deeper in the rock than its force explains.
+            pressed = bit_u + compliance * np.minimum(self.evaluate(state).weight_on_bit_n, 0.0)
+            if hole_u is None:
+                state.hole_u = pressed
+            else:
+                given = np.broadcast_to(np.asarray(hole_u, dtype=float), bit_u.shape)
+                state.hole_u = np.where(given < pressed - ON_BOTTOM_TOLERANCE_M, pressed, given)
         load = self._external_load(state.top_speed_rad_per_s, 0.0, hook_load_n)
         for _ in range(5):
             evaluation = self.evaluate(state)

@@ -62,13 +62,14 @@ class StepWork:
 
 
 @kernel
-def begin(q, q_rate, q_acceleration, hole_in, has_hole, dt, bit_axial_row, d_pred, v_pred, a,
-          touch, hole, error, active, bit_ok):
+def begin(q, q_rate, q_acceleration, hole_in, has_hole, dt, bit_axial_row, rigid, d_pred,
+          v_pred, a, touch, hole, error, active, bit_ok):
     """
     Compute the predictor (state arrays members first (m, n), work arrays members last).
 
     d*, v*, a = the last acceleration, the hole and ``touch``, the end-of-step ROP that puts the
-    bit on the hole bottom (Newmark: d = d* + (beta/gamma) dt (v - v*); 0 on bottom).
+    bit on the hole bottom (Newmark: d = d* + (beta/gamma) dt (v - v*); on a rigid rock 0 on
+    bottom, on a compliant one negative where the bit presses the rock).
     """
     members, n = q.shape
     cd = (0.5 - BETA) * dt * dt
@@ -87,7 +88,9 @@ def begin(q, q_rate, q_acceleration, hole_in, has_hole, dt, bit_axial_row, d_pre
             rate += vp * bit_axial_row[j]
             bit_u += q[i, j] * bit_axial_row[j]
         hole[i] = hole_in[i] if has_hole else bit_u
-        touch[i] = maximum(rate + GAMMA / (BETA * dt) * (hole[i] - reach), 0.0)
+        touch[i] = rate + GAMMA / (BETA * dt) * (hole[i] - reach)
+        if rigid:
+            touch[i] = maximum(touch[i], 0.0)
         error[i] = np.inf
         active[i] = True
         bit_ok[i] = True
@@ -215,6 +218,7 @@ def update(iteration, force_t, radial, in_contact, tangent, touching, theta_x_ra
             by1[i] += y[j, i] * row1
             speed[i] += work_v[j, i] * work_v[j, i]
     gdt = GAMMA * dt
+    slope = law[7] * GAMMA / (BETA * dt)               # a compliant rock's resting branch
     robust_used = 0
     for i in range(members):
         omega = theta_x_rate_t[bit_node, i]
@@ -222,7 +226,7 @@ def update(iteration, force_t, radial, in_contact, tangent, touching, theta_x_ra
         g = min(i, germ.shape[0] - 1)
         if bit_rock:
             x0, x1, f0, f1, lifted, j00, j01, j10, j11, solved, robust = _solve_bit(
-                linear0, linear1, flexibilities[i], rop[i], omega, touch[i], gdt,
+                linear0, linear1, flexibilities[i], rop[i], omega, touch[i], slope, gdt,
                 static_force, germ[g, 0, 0], germ[g, 0, 1], germ[g, 1, 1], random, law,
                 fade_speed)
             robust_used |= robust
@@ -381,8 +385,8 @@ def _woodbury(i, in_contact, tangent, n_nodes, dt2, local_directions, local_resp
 
 
 @inline
-def _solve_bit(linear0, linear1, h, start0, start1, touch, gdt, static_force, g11, g12, g22,
-               random, law, fade_speed):
+def _solve_bit(linear0, linear1, h, start0, start1, touch, slope, gdt, static_force, g11, g12,
+               g22, random, law, fade_speed):
     """
     Solve x = linear + gamma dt H (F(x) - F_c) for one member (NewmarkIntegrator._solve_bit).
 
@@ -411,6 +415,8 @@ def _solve_bit(linear0, linear1, h, start0, start1, touch, gdt, static_force, g1
     safe = (np.sign(x0) == np.sign(start0) and np.sign(x1) == np.sign(start1)
             and abs(s0) <= 0.5 * abs(start0) and not lifted and c0 < 0 and x0 > touch
             and x1 > 0)
+    if safe and slope > 0.0:              # on the cutting branch, beyond the rock's spring
+        safe = x0 > touch - slope * c0
     if safe and x1 >= fade_speed:                           # where the torque may fade
         mean_force = law_point(x0, x1, 1.0, 0.0, 1.0, False, law)[0]
         threshold = (law[2] * np.sqrt(x1 * x1 + law[5] * law[5]) - law[0]) / law[1]
@@ -424,8 +430,8 @@ def _solve_bit(linear0, linear1, h, start0, start1, touch, gdt, static_force, g1
         # speed it has without a rock torque is free: F = 0, omega = b2, no search.
         rop, omega, f1, f2 = b0, b1, 0.0, 0.0
     else:
-        rop, omega, f1, f2, _, _ = solve_one(b0, b1, c_0, c_1, touch, g11, g12, g22, random,
-                                             start1, law)
+        rop, omega, f1, f2, _, _ = solve_one(b0, b1, c_0, c_1, touch, slope, g11, g12, g22,
+                                             random, start1, law)
     free = f1 >= 0.0
     if free:                      # the Jacobian of a guarded member is the law's at the iterate
         j00 = j01 = j10 = j11 = 0.0
@@ -434,7 +440,7 @@ def _solve_bit(linear0, linear1, h, start0, start1, touch, gdt, static_force, g1
 
 
 @kernel
-def finish(d_pred, v_pred, a, cd, cv, bit_axial_row, hole, bit_force, bit_torque,
+def finish(d_pred, v_pred, a, cd, cv, bit_axial_row, hole, bit_force, bit_torque, compliance,
            static_force, bit_rows, axial_index, torsion_index, final_full, final_modal,
            error, bit_ok, tolerance, q, q_rate, q_acceleration, hole_out, finite, converged):
     """
@@ -442,7 +448,9 @@ def finish(d_pred, v_pred, a, cd, cv, bit_axial_row, hole, bit_force, bit_torque
 
     The bit's exact forces into the final evaluation (final_full (n_dofs, m), final_modal (n,
     m)), the new state members first (q, q_rate, q_acceleration (m, n), hole_out (m,): the hole
-    only deepens), finite and converged (m,). Returns the number of members converged.
+    only deepens, to where the bit ends less the depth -F1 / k by which it presses a compliant
+    rock, ``compliance`` = 1 / k, 0 for a rigid one),
+    finite and converged (m,). Returns the number of members converged.
     """
     n, members = a.shape
     count = 0
@@ -460,7 +468,7 @@ def finish(d_pred, v_pred, a, cd, cv, bit_axial_row, hole, bit_force, bit_torque
             q[i, j], q_rate[i, j], q_acceleration[i, j] = d, v, a[j, i]
             bit_u += d * bit_axial_row[j]
             ok = ok and np.isfinite(d) and np.isfinite(v)
-        hole_out[i] = maximum(hole[i], bit_u)
+        hole_out[i] = maximum(hole[i], bit_u + compliance * minimum(bit_force[i], 0.0))
         finite[i] = ok
         converged[i] = ok and bit_ok[i] and error[i] <= tolerance
         count += converged[i]
@@ -512,8 +520,8 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out):
     (final_full, final_modal, final_radial, final_contact, final_tangent, bit_rop, bit_omega,
      bit_force, bit_torque, bit_lifted, bit_jacobian, bit_solved) = final
     q_out, q_rate_out, q_acceleration_out, hole_out, finite, converged = out
-    begin(q, q_rate, q_acceleration, hole_in, has_hole, dt, bit_axial_row, d_pred, v_pred, a,
-          touch, hole, error, active, bit_ok)
+    begin(q, q_rate, q_acceleration, hole_in, has_hole, dt, bit_axial_row, law[7] == 0.0,
+          d_pred, v_pred, a, touch, hole, error, active, bit_ok)
     cd, cv = BETA * dt * dt, GAMMA * dt
     iterations, robust = 0, 0
     for iteration in range(1, max_iterations + 1):
@@ -541,13 +549,12 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out):
             previous_lifted, d, v, a, modal, residual, y, product, responses, touch, error,
             previous_error, active, bit_ok, scratch, flexibilities, on_wall, final_full,
             final_modal, final_radial, final_contact, final_tangent, bit_rop, bit_omega,
-            bit_force, bit_torque,
-            bit_lifted, bit_jacobian, bit_solved)
+            bit_force, bit_torque, bit_lifted, bit_jacobian, bit_solved)
         robust += used
         if still == 0:
             break
     count = finish(d_pred, v_pred, a, cd, cv, bit_axial_row, hole, bit_force, bit_torque,
-                   static_force, bit_rows, axial_index, torsion_index, final_full,
+                   law[7], static_force, bit_rows, axial_index, torsion_index, final_full,
                    final_modal, error, bit_ok, tolerance, q_out, q_rate_out,
                    q_acceleration_out, hole_out, finite, converged)
     return iterations, robust, count

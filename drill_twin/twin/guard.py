@@ -9,7 +9,8 @@ multiples stated here:
 
 - the state (q, q', q'') and the bit's quantities are finite;
 - the bit is in the hole: not above the surface (depth >= 0) and not deeper than the hole's
-  bottom plus the contact penetration WOB_bound / k_ip (the hole is the simulator's
+  bottom plus the contact penetration WOB_bound / k, k the smaller of k_ip and the rock's
+  ``bit_rock.contact_stiffness_n_per_m`` (the hole is the simulator's
   ``hole_depth_m`` where it has one, else the deepest the bit has been);
 - |ROP| and the top's axial speed <= SPEED_MULTIPLE x the block speed;
 - |bit speed| <= SPEED_MULTIPLE x max(the envelope's top-drive speed, the top speed now)
@@ -75,7 +76,9 @@ class StateGuard:
         self.law = law
         self.set_germs(germs)
         stiffness = config.borehole.contact_stiffness_n_per_m
-        self.bit_penetration_m = self.weight_on_bit_max_n / stiffness
+        rock = config.bit_rock.contact_stiffness_n_per_m           # None: a rigid rock
+        self.bit_penetration_m = self.weight_on_bit_max_n / (
+            stiffness if rock is None else min(stiffness, rock))
         self.lateral = config.physics.contact
         mesh = system.model.mesh
         element_mass = mesh.density_kg_per_m3 * mesh.area_m2 * mesh.length_m
