@@ -69,7 +69,8 @@ KPI_MSE = '/drill_twin/kpi/mechanical_specific_energy'       # std_msgs/msg/Floa
 KPI_ROP = '/drill_twin/kpi/rop_m_per_h'                      # std_msgs/msg/Float64, m/h
 HOLE_DEPTH = '/drill_twin/hole/depth'                        # std_msgs/msg/Float64, m
 """The hole's depth (m), where the bit has drilled to: the bit's depth (the bit state's
-bit_axial position) is smaller while the bit is lifted off bottom."""
+bit_axial position) is smaller while the bit is lifted off bottom, and WOB / k larger while it
+presses the rock on bottom (``bit_rock.contact_stiffness_n_per_m`` = k; 1 mm at 100 kN)."""
 # Surface measurements as a rig reads them (SI, std_msgs/msg/Float64, every tick).
 SURFACE_SPEED = '/drill_twin/surface/speed'                  # rad/s, the top's speed
 SURFACE_TORQUE = '/drill_twin/surface/torque'                # N m, the string's top torque

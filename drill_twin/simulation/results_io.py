@@ -18,8 +18,11 @@ from drill_twin.simulation.history import SimulationResult
 COLUMNS = {
     'time_s': 'simulated time (s)',
     'bit_depth_m': 'bit position along the string, down from the top\'s initial position (m)',
-    'hole_depth_m': 'depth of the hole bottom, the deepest the bit has been (same reference) (m)',
-    'bit_on_bottom': '1 when the bit is on the hole bottom (within 1 um), 0 off bottom',
+    'hole_depth_m': ('depth of the hole bottom (same reference), the rock\'s undeformed surface: '
+                     'the deepest the bit has been less the depth WOB / k by which it presses '
+                     'the rock (m)'),
+    'bit_on_bottom': ('1 when the bit is on the hole bottom (less than 1 um above it, or '
+                      'pressing the rock), 0 off bottom'),
     'rop_m_per_s': 'rate of penetration: the rate the hole deepens, 0 off bottom (m/s)',
     'bit_axial_velocity_m_per_s': 'axial velocity of the bit, du_bit/dt, > 0 down (m/s)',
     'bit_angle_rad': 'bit rotation angle (rad)',
