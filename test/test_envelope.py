@@ -276,7 +276,7 @@ def test_scripted_sweep_of_the_envelope(system, dt):
     run.hold(2.0, speed=0.0)                                       # stopped on bottom
     run.hold(1.5, speed=15.0)                                      # restarted
     run.hold(2.0, hook=_weight(simulator) + 4e4)                   # picked up
-    run.hold(3.0, hook=_weight(simulator) - 3e4)                   # set down
+    run.hold(3.0, hook=_weight(simulator) - 1e5)                   # set down
     run.hold(1.0, speed=5.2, hook=drilling)
     assert run.lifted.all() and run.landed.all()
     print(f'dt = {dt}: {simulator.retries} retried member-steps, {simulator.substeps} '

@@ -492,6 +492,9 @@ class Drawworks:
     block_acceleration_max_m_per_s2: float = 0.2
     line_stiffness_n_per_m: float = 2.0e7
     line_damping_n_s_per_m: float = 2.0e5
+    block_speed_max_m_per_s: float | None = 1.0
+    """The fastest the drum moves the block (m/s): in ``hook_load`` mode the brake holds the
+    top's axial speed to it (dynamics/drawworks.HookBrake). None: the paper's bare hook force."""
     weight_on_bit_setpoint_n: float = 100.0e3
     autodriller_proportional_m_per_s_per_n: float = 1.0e-7
     autodriller_integral_m_per_s2_per_n: float = 5.0e-9
@@ -501,6 +504,8 @@ class Drawworks:
             raise ConfigValueError('block_velocity_m_per_s', 'must be finite')
         _at_most(self, 'block_velocity_m_per_s', BLOCK_SPEED_MAX_M_PER_S, BLOCK_SPEED_REASON)
         _positive(self, 'line_stiffness_n_per_m', 'block_acceleration_max_m_per_s2')
+        if self.block_speed_max_m_per_s is not None:
+            _positive(self, 'block_speed_max_m_per_s')
         _non_negative(self, 'line_damping_n_s_per_m', 'weight_on_bit_setpoint_n',
                       'autodriller_proportional_m_per_s_per_n',
                       'autodriller_integral_m_per_s2_per_n')

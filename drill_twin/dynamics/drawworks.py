@@ -208,6 +208,47 @@ def line_hook_load_n(drawworks: Drawworks) -> float:
                + drawworks.line_damping * (v - drawworks.block_velocity_m_per_s), 0.0)
 
 
+class HookBrake:
+    """
+    The drum's brake under the paper's hook force: the top moves no faster than the block can.
+
+    In ``hook_load`` mode the hook load is a force, and nothing in the paper's model limits how
+    fast it moves the string: a hook load 250 kN below the string's weight with the bit 7 m off
+    bottom dropped the string at 5.4 m/s onto the rock (envelope sweep, 2026-12-02), and at the
+    string's weight a string released from its WOB drifted up at 0.5 m/s. A rig's hook hangs
+    from a block that the drum moves at most at ``block_speed_max_m_per_s``: where the command
+    would take the top's axial speed beyond it in the coming step, the hook load is what holds
+    it there, H = H_cmd + (v_cap - v(H_cmd)) / (dv/dH) (u_top' affine in H, as in
+    :class:`TopAxialMotion`), never below 0. Below the cap the command is applied unchanged.
+    """
+
+    def __init__(self, simulator, speed_max_m_per_s: float):
+        self.simulator = simulator
+        self.top = TopAxialMotion(simulator)
+        self.speed_max_m_per_s = float(speed_max_m_per_s)
+        self._last_command = None
+
+    def hook_load(self, command_n):
+        """Return the hook load to apply over the coming step: the command, or the brake's."""
+        _, velocity = self.top.now_members()
+        changed = not np.array_equal(command_n, self._last_command)
+        self._last_command = np.copy(command_n)
+        if not changed and np.all(np.abs(velocity) < 0.5 * self.speed_max_m_per_s):
+            return command_n                    # one step cannot reach the cap from here
+        state = self.simulator.state
+        if not all(np.all(np.isfinite(x)) for x in (state.q, state.q_rate, state.q_acceleration)):
+            return command_n                    # a diverged member is the guard's to handle
+        slope = self.top.velocity_slope_m_per_s_per_n
+        _, free = self.top.predicted_members()                   # u_top' at H = 0, (m,)
+        command = np.broadcast_to(np.asarray(command_n, dtype=float), free.shape)
+        speed = free + slope * command
+        cap = self.speed_max_m_per_s
+        if np.all(np.abs(speed) <= cap):
+            return command_n
+        held = np.clip(speed, -cap, cap)
+        return np.maximum(command + (held - speed) / slope, 0.0)
+
+
 class FollowedBlock:
     """
     Every member's drill line hung from one block that moves as the rig's (the ensemble's input).
@@ -235,6 +276,7 @@ class FollowedBlock:
 
     def follow(self, block_position_m: float, block_velocity_m_per_s: float) -> np.ndarray:
         """Set every member's hook load for the coming step; the block ends it at x_b (N, (m,))."""
+        self.simulator.hook_load_through_line = True          # the lines, not the brake
         if self.slack_m is None:
             self.block_position_m = block_position_m
             self.reseat(np.arange(self.simulator.members))
@@ -261,3 +303,4 @@ class FollowedBlock:
     def release(self) -> None:
         """Stop following (back to one hook load for the batch): the next follow reseats all."""
         self.slack_m = None
+        self.simulator.hook_load_through_line = False

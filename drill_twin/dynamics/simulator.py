@@ -32,6 +32,7 @@ from drill_twin.config.schema import DrillStringConfig
 from drill_twin.dynamics.bit_rock import BitRockLaw
 from drill_twin.dynamics.contact import ContactForces
 from drill_twin.dynamics.contact_events import ContactEpisodes, LiftOffEpisodes, node_gap_m
+from drill_twin.dynamics.drawworks import HookBrake
 from drill_twin.dynamics.forces import ForceEvaluation, NonlinearForces
 from drill_twin.dynamics.newmark import (ON_BOTTOM_TOLERANCE_M, BatchState, NewmarkIntegrator,
                                          StepResult)
@@ -163,6 +164,11 @@ class Simulator:
         prestress = system.model.prestress
         hook = config.operation.hook_load_n
         self.hook_load_command_n = prestress.hook_load_n if hook is None else hook
+        self._step_hook_load_n = self.hook_load_command_n
+        """The hook load applied over the current step (the brake's where it holds the top)."""
+        self._hook_brake = None
+        self.hook_load_through_line = False
+        """True while drill lines pull the members' hook loads (a followed block)."""
         speed = config.operation.top_drive_speed_rad_per_s
         self.top_drive = TopDrive(speed, config.operation.top_drive_acceleration_rad_per_s2)
         self.top_speed_command_rad_per_s = speed
@@ -198,6 +204,24 @@ class Simulator:
     def set_top_drive_speed(self, rad_per_s: float) -> None:
         """Set the top-drive speed command (rad/s), followed from the next step on."""
         self.top_speed_command_rad_per_s = float(rad_per_s)
+
+    def _applied_hook_load(self):
+        """
+        Return the hook load of the coming step (N, scalar or (m,)).
+
+        The command; in ``hook_load`` mode (no drawworks, no followed block) held by the drum's
+        brake where it would move the top faster than ``drawworks.block_speed_max_m_per_s``
+        (:class:`~drill_twin.dynamics.drawworks.HookBrake`).
+        """
+        command = self.hook_load_command_n
+        if self.hook_load_through_line or getattr(self.top_drive, 'drawworks', None) is not None:
+            return command
+        if self._hook_brake is None:
+            speed_max = self.config.drawworks.block_speed_max_m_per_s
+            if speed_max is None:
+                return command
+            self._hook_brake = HookBrake(self, speed_max)
+        return self._hook_brake.hook_load(command)
 
     def set_hook_load(self, newton) -> None:
         """
@@ -308,7 +332,8 @@ class Simulator:
         """
         start_speed = self.state.top_speed_rad_per_s
         speed = self.top_drive.advance(self.top_speed_command_rad_per_s, self.dt)
-        new_state, result = self.integrator.step(self.state, speed, self.hook_load_command_n)
+        self._step_hook_load_n = self._applied_hook_load()
+        new_state, result = self.integrator.step(self.state, speed, self._step_hook_load_n)
         retries = np.zeros(self.members, dtype=int)
         if not result.success:
             # A diverging member's NaN and inf are caught below (SimulationDiverged), not
@@ -446,7 +471,7 @@ class Simulator:
         integrator.germ = None if germ is None else germ[members]
         integrator.forget(None)
         state = self.state.take(members)
-        hook = self.hook_load_command_n
+        hook = self._step_hook_load_n
         hook = np.asarray(hook)[members] if np.ndim(hook) else hook
         result = None
         for j in range(count):
@@ -466,7 +491,7 @@ class Simulator:
         """
         units = 2 ** SUBSTEP_LEVELS
         state = self.state.take([member])
-        hook = self.hook_load_command_n
+        hook = self._step_hook_load_n
         hook = hook[[member]] if np.ndim(hook) else hook
         done, level, attempts, evaluation = 0, finest, 0, None
         while done < units:
