@@ -241,8 +241,9 @@ def _pick_up_and_drop(brake: str):
         for _ in range(int(round(seconds / simulator.dt))):
             simulator.step()
             o = simulator.observe(detailed=1)
+            assert np.ndim(o.hook_load_n) == 0                # one member: one hook load
             rows.append((simulator.time_s, float(o.hook_velocity_m_per_s[0]),
-                         float(np.ravel(o.hook_load_n)[0]),
+                         float(o.hook_load_n),
                          float(o.hole_depth_m[0] - o.bit_depth_m[0]), command))
     return np.array(rows)
 

@@ -211,3 +211,28 @@ def test_the_torque_limit_command_is_bounded_by_its_node_parameter(config):
     with pytest.raises(CommandRejected, match='must be > 0 N m'):
         engine.set_top_drive_torque_limit(0.0)
     assert engine._torque_limit_nm == 60e3
+
+
+def test_a_hook_load_step_that_the_drums_brake_holds_goes_through_the_twin(config):
+    """
+    The hook load 300 kN below the string's weight, from drilling, with an ensemble.
+
+    The step makes the brake act (drawworks.block_speed_max_m_per_s) on the mean model and
+    on the members; every snapshot's surface hook load is one number, the members' too, and
+    the top never moves faster than the block can (the twin crashed on a (1,)-array hook load
+    the brake returned, envelope sweep 2026-12-02).
+    """
+    from drill_twin.twin.guard import StateGuard
+    with threadpool_limits(limits=1, user_api='blas'):
+        engine = _engine(config, members=4)
+        weight = StateGuard(engine.simulator.system, engine.simulator.law).envelope
+        snapshots = [engine.advance(1) for _ in range(50)]
+        command = weight.string_weight_n - 3e5
+        engine.set_hook_load(command)           # 400 kN less at once: the top would run at 1.7 m/s
+        snapshots += [engine.advance(1) for _ in range(300)]
+    hooks = [s.surface.hook_load_n for s in snapshots]
+    assert all(isinstance(h, float) and math.isfinite(h) for h in hooks)
+    assert max(hooks[50:]) > command + 1e4                           # the brake held it
+    speeds = [abs(float(s.observation.hook_velocity_m_per_s[0])) for s in snapshots]
+    assert max(speeds) <= 1.005
+    assert snapshots[-1].health['resets'] == 0

@@ -245,8 +245,10 @@ class HookBrake:
         cap = self.speed_max_m_per_s
         if np.all(np.abs(speed) <= cap):
             return command_n
-        held = np.clip(speed, -cap, cap)
-        return np.maximum(command + (held - speed) / slope, 0.0)
+        held = np.maximum(command + (np.clip(speed, -cap, cap) - speed) / slope, 0.0)
+        if np.ndim(command_n) == 0 and held.size == 1:
+            return float(held[0])               # one member, one hook load: keep it a scalar
+        return held
 
 
 class FollowedBlock:
