@@ -32,11 +32,13 @@ def test_health_tells_the_truth(twin_factory):  # noqa: F811
 
     A rejected command makes the next report WARN; a mean model breaking a physical bound (3 MN
     let past the door) makes it ERROR, held in the report after too, with every reason in the
-    status itself; then OK again. Nothing implausible is published meanwhile.
+    status itself; then OK again. Nothing implausible is published meanwhile. The drum's brake
+    would hold that string to 1 m/s: it is off here (the paper's bare hook force).
     """
     from diagnostic_msgs.msg import DiagnosticStatus
 
-    twin = twin_factory(ensemble_members=0, health_rate_hz=20.0, log_enabled=False)
+    twin = twin_factory(ensemble_members=0, health_rate_hz=20.0, log_enabled=False,
+                        model_overrides=['drawworks.block_speed_max_m_per_s=null'])
     node = twin.node
     ok = _health_after(twin, 0, lambda s: s.level == DiagnosticStatus.OK, 'an OK report')
     assert ok.message == 'running'
@@ -60,8 +62,10 @@ def test_health_tells_the_truth(twin_factory):  # noqa: F811
     reports = twin.statuses('drill_twin: twin health')
     assert reports[index + 1].level == DiagnosticStatus.ERROR          # held one period
     guard = node.engine._mean.guard
+    hole = float(node.engine.simulator.hole_depth_m[0])      # the restarts drill a little
+    assert hole <= 1600.05
     for m in twin.received[itf.BIT_STATE]:
-        assert 0.0 <= m.position[0] <= 1600.01
+        assert 0.0 <= m.position[0] <= hole + guard.bit_penetration_m
         assert abs(m.velocity[0]) <= guard.axial_speed_max_m_per_s
     for topic in (itf.KPI_STICK_SLIP, itf.KPI_MSE, itf.KPI_ROP):
         assert _finite([m.data for m in twin.received[topic]])
