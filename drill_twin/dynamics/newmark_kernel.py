@@ -449,8 +449,8 @@ def finish(d_pred, v_pred, a, cd, cv, bit_axial_row, hole, bit_force, bit_torque
     The bit's exact forces into the final evaluation (final_full (n_dofs, m), final_modal (n,
     m)), the new state members first (q, q_rate, q_acceleration (m, n), hole_out (m,): the hole
     only deepens, to where the bit ends less the depth -F1 / k by which it presses a compliant
-    rock, ``compliance`` = 1 / k, 0 for a rigid one),
-    finite and converged (m,). Returns the number of members converged.
+    rock, ``compliance`` = 1 / k, 0 for a rigid one), finite and converged (m,). Returns the
+    number of members converged.
     """
     n, members = a.shape
     count = 0

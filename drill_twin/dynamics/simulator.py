@@ -33,6 +33,7 @@ from drill_twin.dynamics.bit_rock import BitRockLaw
 from drill_twin.dynamics.contact import ContactForces
 from drill_twin.dynamics.contact_events import ContactEpisodes, LiftOffEpisodes, node_gap_m
 from drill_twin.dynamics.drawworks import HookBrake
+from drill_twin.dynamics.rig import drawworks_of
 from drill_twin.dynamics.forces import ForceEvaluation, NonlinearForces
 from drill_twin.dynamics.newmark import (ON_BOTTOM_TOLERANCE_M, BatchState, NewmarkIntegrator,
                                          StepResult)
@@ -214,7 +215,7 @@ class Simulator:
         (:class:`~drill_twin.dynamics.drawworks.HookBrake`).
         """
         command = self.hook_load_command_n
-        if self.hook_load_through_line or getattr(self.top_drive, 'drawworks', None) is not None:
+        if self.hook_load_through_line or drawworks_of(self) is not None:
             return command
         if self._hook_brake is None:
             speed_max = self.config.drawworks.block_speed_max_m_per_s
