@@ -236,3 +236,47 @@ def test_a_hook_load_step_that_the_drums_brake_holds_goes_through_the_twin(confi
     speeds = [abs(float(s.observation.hook_velocity_m_per_s[0])) for s in snapshots]
     assert max(speeds) <= 1.005
     assert snapshots[-1].health['resets'] == 0
+
+
+def test_a_landing_is_reported_at_its_touch_down_with_the_impacts_peak_weight_on_bit():
+    """
+    Picked up off bottom, set down at 0.25 m/s: one 'landing' event, stamped at the step where the
+    bit touched the rock, with the bit's axial speed before it and the first maximum of the
+    WOB after it, both read step by step here. On the rock's spring the impact builds over
+    several steps, so the peak is well above the touch-down step's WOB.
+    """
+    from drill_twin.twin.engine import LANDING_PEAK_WINDOW_S
+    config = load_config(None, ['integration.time_step_s=0.005'])
+    with threadpool_limits(limits=1, user_api='blas'):
+        engine = _engine(config, members=0)
+        engine.advance(200)
+        engine.set_axial_mode('block_velocity')
+        engine.set_block_velocity(-0.5)
+        engine.advance(600)                                   # 3 s up at 0.5 m/s
+        engine.set_block_velocity(0.0)
+        engine.advance(200)
+        assert not engine.simulator.on_bottom()[0]
+        engine.set_block_velocity(0.25)
+        rows, events = [], []
+        for _ in range(3000):
+            before = engine.simulator.last
+            snapshot = engine.advance(1)
+            events += [e for e in snapshot.events if e.kind == 'landing']
+            now = engine.simulator.last
+            rows.append((engine.time_s, bool(engine.simulator.on_bottom()[0]),
+                         float(before.rop_m_per_s[0]), -float(now.weight_on_bit_n[0])))
+            if events:
+                break
+    t, on_bottom, speed, wob = (np.array(c) for c in zip(*rows))
+    touch = int(np.flatnonzero(on_bottom)[0])
+    assert len(events) == 1
+    values = events[0].values
+    assert events[0].time_s == pytest.approx(t[touch])
+    assert float(values['speed_m_per_s']) == pytest.approx(speed[touch], rel=1e-5)
+    assert 0.0 < speed[touch] < 0.5                 # downwards, at most twice the block's speed
+    after = wob[touch:]
+    falls = np.flatnonzero(np.diff(after) < 0)
+    first_peak = after[: falls[0] + 1].max()
+    assert float(values['peak_weight_on_bit_n']) == pytest.approx(first_peak, rel=1e-5)
+    assert float(values['time_to_peak_s']) < LANDING_PEAK_WINDOW_S
+    assert first_peak > 3 * wob[touch]

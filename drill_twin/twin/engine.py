@@ -47,6 +47,11 @@ __all__ = ['BitState', 'CommandLimits', 'CommandRejected', 'EnsembleSettings', '
            'TwinEvent', 'TwinSnapshot', 'TwinStalled', 'MAX_CONSECUTIVE_FAILURES']
 
 
+LANDING_PEAK_WINDOW_S = 1.0
+"""Longest wait for a landing's peak WOB (s): a bit set down slowly, whose WOB keeps rising,
+is reported with the WOB reached by then."""
+
+
 class CommandRejected(ValueError):
     """A command that is not finite or outside its range; the previous one stays."""
 
@@ -147,6 +152,7 @@ class TwinEngine:
         self._events = []
         self._last = self.simulator.observe()
         self._on_bottom = bool(self.simulator.on_bottom()[0])
+        self._landing = None                  # a landing whose peak WOB is still to come
         self._wall_per_tick = deque(maxlen=100)
         self._iterations = deque(maxlen=100)
         self.rejected_commands = 0
@@ -439,6 +445,10 @@ class TwinEngine:
         """
         Events of the mean model between two steps' force evaluations.
 
+        Landing: one 'landing' per touch-down of the bit on the hole bottom, stamped at the
+        touch-down with the bit's axial speed just before it and the impact's peak WOB (the
+        first maximum of the WOB after it, within LANDING_PEAK_WINDOW_S; on the rock's spring
+        it comes some 70 ms after the touch-down), sent when that peak has passed.
         Wall contact: one 'impact' per contact episode of a node (it opens when the node
         penetrates the wall; dynamics/contact_events.py), with the node's depth and the force
         of its first step, and one 'contact_end' when the episode closes (the node is more
@@ -462,21 +472,40 @@ class TwinEngine:
                  'peak_penetration_m': f'{event.peak_penetration_m:.6g}',
                  'duration_s': f'{duration:.6g}'}))
         on_bottom = bool(self.simulator.on_bottom()[0])
+        landing = self._landing
+        if landing is not None:
+            compression = -float(now.weight_on_bit_n[0])
+            if on_bottom and compression >= landing['peak_n']:
+                landing.update(peak_n=compression, peak_s=t)
+            elif (not on_bottom or compression < landing['peak_n']
+                  or t - landing['time_s'] >= LANDING_PEAK_WINDOW_S):
+                self._report_landing()
         if on_bottom != self._on_bottom:
             hole = float(self.simulator.hole_depth_m[0])
-            if on_bottom:           # an axial impact on the rock: speed before, force after
-                speed = float(before.rop_m_per_s[0])
-                self._events.append(TwinEvent(
-                    'landing', 'warn', t, f'the bit landed on bottom at {hole:.2f} m '
-                    f'({speed:.3g} m/s, weight on bit {-now.weight_on_bit_n[0] / 1e3:.3g} kN)',
-                    {'hole_depth_m': f'{hole:.3f}', 'speed_m_per_s': f'{speed:.6g}',
-                     'force_n': f'{now.weight_on_bit_n[0]:.6g}'}))
+            if on_bottom:           # an axial impact on the rock: reported at its peak force
+                self._landing = {'time_s': t, 'hole_m': hole,
+                                 'speed_m_per_s': float(before.rop_m_per_s[0]),
+                                 'peak_n': -float(now.weight_on_bit_n[0]), 'peak_s': t}
             else:
                 self._events.append(TwinEvent(
                     'lift_off', 'warn', t, f'the bit lifted off bottom at {hole:.2f} m',
                     {'hole_depth_m': f'{hole:.3f}',
                      'speed_m_per_s': f'{now.rop_m_per_s[0]:.6g}'}))
             self._on_bottom = on_bottom
+
+    def _report_landing(self) -> None:
+        """The pending landing's event: its time, the bit's speed before, the impact's peak WOB."""
+        landing, self._landing = self._landing, None
+        peak_kn = landing['peak_n'] / 1e3
+        self._events.append(TwinEvent(
+            'landing', 'warn', landing['time_s'],
+            f'the bit landed on bottom at {landing["hole_m"]:.2f} m '
+            f'({landing["speed_m_per_s"]:.3g} m/s, peak weight on bit {peak_kn:.3g} kN '
+            f'{landing["peak_s"] - landing["time_s"]:.3g} s later)',
+            {'hole_depth_m': f'{landing["hole_m"]:.3f}',
+             'speed_m_per_s': f'{landing["speed_m_per_s"]:.6g}',
+             'peak_weight_on_bit_n': f'{landing["peak_n"]:.6g}',
+             'time_to_peak_s': f'{landing["peak_s"] - landing["time_s"]:.6g}'}))
 
     # -- results -------------------------------------------------------------------------
     def kpi_window_samples(self) -> np.ndarray:
