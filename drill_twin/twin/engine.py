@@ -494,7 +494,7 @@ class TwinEngine:
             self._on_bottom = on_bottom
 
     def _report_landing(self) -> None:
-        """The pending landing's event: its time, the bit's speed before, the impact's peak WOB."""
+        """Report the pending landing: its time, the bit's speed before, the impact's peak WOB."""
         landing, self._landing = self._landing, None
         peak_kn = landing['peak_n'] / 1e3
         self._events.append(TwinEvent(
