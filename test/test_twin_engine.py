@@ -243,8 +243,9 @@ def test_a_landing_is_reported_at_its_touch_down_with_the_impacts_peak_weight_on
     Picked up off bottom, set down at 0.25 m/s: one 'landing' event.
 
     It is stamped at the step where the bit touched the rock, with the bit's axial speed
-    before it and the first maximum of the WOB after it, both read step by step here. On the rock's spring the impact builds over
-    several steps, so the peak is well above the touch-down step's WOB.
+    before it and the first maximum of the WOB after it, both read step by step here. On the
+    rock's spring the impact builds over several steps, so the peak is well above the
+    touch-down step's WOB.
     """
     from drill_twin.twin.engine import LANDING_PEAK_WINDOW_S
     config = load_config(None, ['integration.time_step_s=0.005'])
