@@ -139,7 +139,7 @@ def test_the_block_accelerates_at_most_at_the_drums_limit():
     A block-velocity step is followed at the configured acceleration, a ramp, not a jump.
 
     The block starts at the top's speed (bumpless), moves by a_max dt a step towards the
-    command, then holds it exactly; the autodriller's integral is held back with it.
+    command, then holds it exactly.
     """
     limit = 0.25
     config = load_config(overrides=QUIET + [f'drawworks.block_acceleration_max_m_per_s2={limit}'])
@@ -216,6 +216,49 @@ def test_the_autodriller_feeds_line_and_never_hoists():
     assert velocities[0] < -0.4                         # bumpless: from the string's speed
     assert np.all(np.diff(velocities) >= -1e-12)        # braking, never hoisting harder
     assert velocities[-1] == 0.0
+
+
+def test_the_autodriller_engaged_on_a_running_block_stays_within_its_feed_rate():
+    """
+    Engaged while the block still runs down at 0.2 m/s onto a bit that does not turn.
+
+    The bumpless start is clamped to the ROP limit v_max, and so is the integral: the block
+    slows to v_max and stops once the proportional action alone asks for less than nothing,
+    so the WOB overshoots the set-point by at most v_max / K_p plus the line paid out while
+    the block decelerates from 0.2 m/s to v_max. Before, the integral started at 0.2 m/s and
+    this slow loop (natural period sqrt(1 / (k_eq K_i)), about 130 s) fed the stopped bit
+    to 900 kN at a 200 kN set-point (envelope sweep, 2026-12-02).
+    """
+    config = load_config(overrides=QUIET + ['drawworks.mode=block_velocity'])
+    simulator = Simulator(config)
+    attach_drives(simulator)
+    drawworks = drawworks_of(simulator)
+    simulator.set_top_drive_speed(0.0)
+    for _ in range(int(round(5.0 / simulator.dt))):        # the bit stops on bottom
+        simulator.step()
+    start = 0.2
+    drawworks.set_block_velocity(start)
+    while drawworks.block_velocity_m_per_s < start:
+        simulator.step()
+    setpoint = 200e3
+    drawworks.set_weight_on_bit_setpoint(setpoint)
+    set_axial_mode(simulator, 'autodriller')
+    wob, block = [], []
+    for _ in range(int(round(40.0 / simulator.dt))):
+        simulator.step()
+        wob.append(-simulator.last.weight_on_bit_n[0])
+        block.append(drawworks.block_velocity_m_per_s)
+    feed_max = config.drawworks.autodriller_feed_rate_max_m_per_s
+    kp = config.drawworks.autodriller_proportional_m_per_s_per_n
+    deceleration = config.drawworks.block_acceleration_max_m_per_s2
+    braking = (start ** 2 - feed_max ** 2) / (2 * deceleration) * _equivalent_stiffness(config)
+    assert np.max(wob) <= setpoint + feed_max / kp + braking
+    assert np.max(wob) > setpoint                          # it did overshoot: the bound matters
+    assert max(block[int(round(2.0 / simulator.dt)):]) <= feed_max
+    assert block[-1] == 0.0 and wob[-1] > setpoint         # holds, never hoists
+    for bad in ('0', '-0.01', '10'):
+        with pytest.raises(Exception, match='autodriller_feed_rate_max_m_per_s'):
+            load_config(overrides=[f'drawworks.autodriller_feed_rate_max_m_per_s={bad}'])
 
 
 # -- the drum's brake under the hook force (issue 10) ------------------------------------------

@@ -498,12 +498,19 @@ class Drawworks:
     weight_on_bit_setpoint_n: float = 100.0e3
     autodriller_proportional_m_per_s_per_n: float = 1.0e-7
     autodriller_integral_m_per_s2_per_n: float = 5.0e-9
+    autodriller_feed_rate_max_m_per_s: float = 0.02
+    """The autodriller's ROP limit (m/s; 0.02 = 72 m/h, above the law's steady ROP over the
+    envelope, 64 m/h at 30 rad/s and 300 kN): it never feeds line faster, and its integral is
+    held within [0, this] (anti-windup)."""
 
     def __post_init__(self):
         if not math.isfinite(self.block_velocity_m_per_s):
             raise ConfigValueError('block_velocity_m_per_s', 'must be finite')
         _at_most(self, 'block_velocity_m_per_s', BLOCK_SPEED_MAX_M_PER_S, BLOCK_SPEED_REASON)
-        _positive(self, 'line_stiffness_n_per_m', 'block_acceleration_max_m_per_s2')
+        _positive(self, 'line_stiffness_n_per_m', 'block_acceleration_max_m_per_s2',
+                  'autodriller_feed_rate_max_m_per_s')
+        _at_most(self, 'autodriller_feed_rate_max_m_per_s', BLOCK_SPEED_MAX_M_PER_S,
+                 BLOCK_SPEED_REASON)
         if self.block_speed_max_m_per_s is not None:
             _positive(self, 'block_speed_max_m_per_s')
         _non_negative(self, 'line_damping_n_s_per_m', 'weight_on_bit_setpoint_n',

@@ -18,12 +18,18 @@ taken from the last converged step), so H is solved implicitly with the string's
 block, as the top drive's torque is (drill_twin/dynamics/top_drive.py).
 
 The autodriller regulates v_b = v_I + K_p e, v_I' = K_i e, e = WOB_sp - WOB (WOB > 0 in
-compression, measured at the last step), never below 0: an autodriller feeds line and does not
-hoist (started on a string that rebounds upwards, it brakes the block to a stop instead of
-following the string up at the bumpless start's speed). In both modes v_b moves towards its
-target by at most a_max dt a step (``block_acceleration_max_m_per_s2``): a velocity step
-would ring the string's axial modes (a 0.25 m/s stop swings the bit by 0.45 m/s), which no
-drum does. The autodriller's integral is held back with the block (anti-windup).
+compression, measured at the last step), with v_b within [0, v_max]: an autodriller feeds
+line and does not hoist (started on a string that rebounds upwards, it brakes the block to a
+stop instead of following the string up), and never faster than its ROP limit v_max
+(``autodriller_feed_rate_max_m_per_s``). The integral v_I is held within the same [0, v_max]
+(anti-windup by clamping): a WOB overshoot is then bounded by about v_max / K_p, the error at
+which the proportional action stops the block. Engaged, the integral starts from the block's
+velocity (bumpless) clamped to [0, v_max]: the integral of this slow loop (period about 130 s)
+started at the 0.2 m/s of a block still slowing from a run down fed a stopped bit to 900 kN at
+a 200 kN set-point (envelope sweep, 2026-12-02), and the string's wind-up then spun the bit
+at 150 rad/s when the top drive started. In both modes v_b moves towards its target by at most
+a_max dt a step (``block_acceleration_max_m_per_s2``): a velocity step would ring the string's
+axial modes (a 0.25 m/s stop swings the bit by 0.45 m/s), which no drum does.
 
 After a member is restarted from a safe state, :meth:`Drawworks.reseat` pays out or takes in
 line (s, zero until then) so that it pulls that state's hook load; the block does not jump.
@@ -139,8 +145,9 @@ class Drawworks:
         self.weight_on_bit_setpoint_n = config.weight_on_bit_setpoint_n
         self.kp = config.autodriller_proportional_m_per_s_per_n
         self.ki = config.autodriller_integral_m_per_s2_per_n
+        self.feed_rate_max_m_per_s = config.autodriller_feed_rate_max_m_per_s
         self.acceleration_max_m_per_s2 = config.block_acceleration_max_m_per_s2
-        self.autodriller_integral_m_per_s = velocity      # bumpless: the top's start speed
+        self.autodriller_integral_m_per_s = self._feed(velocity)   # bumpless: the top's speed
         self.block_velocity_m_per_s = velocity            # the block ramps from the top's speed
         self.hook_load_n = float(simulator.hook_load_command_n)
 
@@ -160,7 +167,7 @@ class Drawworks:
         if mode not in ('block_velocity', 'autodriller'):
             raise ValueError(f'drawworks mode must be block_velocity or autodriller, not {mode!r}')
         if mode == 'autodriller' and self.mode != 'autodriller':
-            self.autodriller_integral_m_per_s = self.block_velocity_m_per_s
+            self.autodriller_integral_m_per_s = self._feed(self.block_velocity_m_per_s)
         self.mode = mode
 
     def set_block_velocity(self, m_per_s: float) -> None:
@@ -171,6 +178,10 @@ class Drawworks:
         """Return the autodriller's WOB set-point (N, > 0 in compression)."""
         self.weight_on_bit_setpoint_n = float(newton)
 
+    def _feed(self, m_per_s: float) -> float:
+        """Return a feed rate within the autodriller's range [0, v_max] (m/s)."""
+        return min(max(m_per_s, 0.0), self.feed_rate_max_m_per_s)
+
     def measured_weight_on_bit_n(self) -> float:
         """WOB of the last step, > 0 in compression (N)."""
         return float(-self.simulator.last.weight_on_bit_n[0])
@@ -180,16 +191,15 @@ class Drawworks:
         dt = self.top.dt
         if self.mode == 'autodriller':
             error = self.weight_on_bit_setpoint_n - self.measured_weight_on_bit_n()
-            self.autodriller_integral_m_per_s += self.ki * dt * error
-            # An autodriller feeds line (v_b >= 0): it never hoists, whatever the string does.
-            target = max(self.autodriller_integral_m_per_s + self.kp * error, 0.0)
+            self.autodriller_integral_m_per_s = self._feed(
+                self.autodriller_integral_m_per_s + self.ki * dt * error)
+            # It feeds line (v_b >= 0, never hoists) up to its ROP limit, whatever the string does.
+            target = self._feed(self.autodriller_integral_m_per_s + self.kp * error)
         else:
             target = self.block_velocity_command_m_per_s
         reach = self.acceleration_max_m_per_s2 * dt
         now = self.block_velocity_m_per_s
         self.block_velocity_m_per_s = min(max(target, now - reach), now + reach)
-        if self.mode == 'autodriller':                   # anti-windup
-            self.autodriller_integral_m_per_s += self.block_velocity_m_per_s - target
         self.block_position_m += dt * self.block_velocity_m_per_s
         u0, v0 = self.top.predicted(0.0)
         self.hook_load_n = float(self.top.hook_load_through_line(
