@@ -208,6 +208,11 @@ def test_an_implausible_member_is_restarted_and_the_others_go_on(config):
     assert len(events) == 1 and events[0].level == 'warn'
     assert events[0].values['members'] == '2' and 'ensemble members [2]' in events[0].message
     assert 'restarted from a safe state' in events[0].message
+    # The bit at the breach, as the step that broke the bound computed it (WOB > 0 compressing).
+    assert float(events[0].values['rop_m_per_s']) == pytest.approx(-10.0, rel=0.05)
+    assert f"ROP {float(events[0].values['rop_m_per_s']):.4g} m/s)" in events[0].message
+    for key in ('weight_on_bit_n', 'torque_on_bit_nm', 'bit_speed_rad_per_s'):
+        assert math.isfinite(float(events[0].values[key]))
     state = ensemble.state
     for row in (0, 2):
         np.testing.assert_array_equal(state.q[row], clean.ensemble_runner.simulator.state.q[row])

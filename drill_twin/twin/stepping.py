@@ -134,6 +134,11 @@ class GuardedSimulator:
             return
         members = sorted(reasons)
         state = self.simulator.state
+        breach = self.simulator.last                # the bit at the breaching step
+        at = {m: {'weight_on_bit_n': -float(breach.weight_on_bit_n[m]),
+                  'torque_on_bit_nm': float(breach.torque_on_bit_nm[m]),
+                  'bit_speed_rad_per_s': float(breach.bit_speed_rad_per_s[m]),
+                  'rop_m_per_s': float(breach.rop_m_per_s[m])} for m in members}
         self._restore(members, before)
         self.simulator.reset_members(members)
         still = [m for m in self.guard.check(self.simulator) if m in reasons]
@@ -146,11 +151,16 @@ class GuardedSimulator:
             which, numbers = self._which([member])
             kept = ('kept its last good state (the safe state is implausible too)'
                     if member in still else 'restarted from a safe state at its last good depth')
+            bit = at[member]
             self.events.append(TwinEvent(
                 'implausible', self.level, state.time_s,
-                f'{which}: {reasons[member]}; {kept}',
+                f'{which}: {reasons[member]} (at WOB {bit["weight_on_bit_n"] / 1e3:.4g} kN, '
+                f'TOB {bit["torque_on_bit_nm"] / 1e3:.4g} kN m, bit speed '
+                f'{bit["bit_speed_rad_per_s"]:.4g} rad/s, ROP {bit["rop_m_per_s"]:.4g} m/s); '
+                f'{kept}',
                 {'members': str(numbers[0]), 'reason': reasons[member],
-                 'time_s': f'{state.time_s:.6g}'}))
+                 'time_s': f'{state.time_s:.6g}',
+                 **{key: f'{value:.6g}' for key, value in bit.items()}}))
         worst = int(np.max(self._consecutive_breaches))
         if worst >= MAX_CONSECUTIVE_FAILURES:
             member = int(np.argmax(self._consecutive_breaches))
