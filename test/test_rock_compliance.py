@@ -109,3 +109,35 @@ def test_the_paper_point_is_the_rigid_rocks_with_the_bit_pressing_the_rock():
     pressed = compliant[:, 3] - compliant[:, 4]
     np.testing.assert_allclose(pressed, -compliant[:, 1] / 1.0e8, atol=1e-9)
     assert pressed.mean() == pytest.approx(1.0e-3, rel=0.01)
+
+
+@pytest.mark.parametrize('stiffness', ['1.0e8', 'null'])
+def test_the_rock_never_drives_the_bit(stiffness):
+    """
+    The rock's torque opposes the bit's rotation at every step: T omega <= 0.
+
+    The hook load jumps to the string's weight for 40 ms and then 300 kN below it, as the
+    envelope sweep's driller did: on the spring the bit rises for a few steps while it still
+    presses the rock. Eq. 26 read at that negative ROP gives t = -Z (a4 ROP / root + a5) > 0,
+    a rock that drives the bit (+3 kN m here, +2.2 MN m at a member's rebound in the sweep);
+    there the bit does not cut and the law's graph is its resting branch. Also through
+    bounces off the bottom (the weight + 50 kN, then 250 kN below it).
+    """
+    config = load_config(None, CHEAP + ['integration.time_step_s=0.005',
+                                        f'bit_rock.contact_stiffness_n_per_m={stiffness}'])
+    with threadpool_limits(limits=1, user_api='blas'):
+        simulator = Simulator(config)
+        weight = simulator.hook_load_command_n - config.bit_rock.static_weight_on_bit_n
+        power, pressing = [], 0
+        for seconds, hook in ((1.0, None), (0.04, weight), (2.0, weight - 3e5),
+                              (1.0, weight + 5e4), (3.0, weight - 2.5e5)):
+            if hook is not None:
+                simulator.set_hook_load(hook)
+            for _ in range(int(round(seconds / simulator.dt))):
+                simulator.step()
+                last = simulator.last
+                power.append(float(last.torque_on_bit_nm[0] * last.bit_speed_rad_per_s[0]))
+                pressing += int(last.weight_on_bit_n[0] < 0 and last.rop_m_per_s[0] < 0)
+    if stiffness != 'null':
+        assert pressing > 0                 # the case: the bit rising while it presses
+    assert max(power) <= 0.0

@@ -391,8 +391,10 @@ def _solve_bit(linear0, linear1, h, start0, start1, touch, slope, gdt, static_fo
     Solve x = linear + gamma dt H (F(x) - F_c) for one member (NewmarkIntegrator._solve_bit).
 
     One Newton step from the iterate's velocities kept where it stays on the law's cutting
-    branch, else the bracketed solve of :mod:`bit_equation`. Returns (x0, x1, F0, F1, lifted,
-    J00, J01, J10, J11, solved, robust).
+    branch (ROP > 0: Eq. 25-26 read at a negative ROP, a bit rising while it presses a
+    compliant rock, give a torque that drives the bit, +2.2 MN m at a member's rebound in
+    the envelope sweep), else the bracketed solve of :mod:`bit_equation`. Returns (x0, x1,
+    F0, F1, lifted, J00, J01, J10, J11, solved, robust).
     """
     f, t, j00, j01, j10, j11 = law_point(start0, start1, g11, g12, g22, random, law)
     lifted = f >= 0.0
@@ -414,7 +416,7 @@ def _solve_bit(linear0, linear1, h, start0, start1, touch, slope, gdt, static_fo
     c1 = t - (j10 * s0 + j11 * s1)
     safe = (np.sign(x0) == np.sign(start0) and np.sign(x1) == np.sign(start1)
             and abs(s0) <= 0.5 * abs(start0) and not lifted and c0 < 0 and x0 > touch
-            and x1 > 0)
+            and x0 > 0 and x1 > 0)
     if safe and slope > 0.0:              # on the cutting branch, beyond the rock's spring
         safe = x0 > touch - slope * c0
     if safe and x1 >= fade_speed:                           # where the torque may fade
