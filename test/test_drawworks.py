@@ -226,7 +226,7 @@ def test_the_autodriller_engaged_on_a_running_block_stays_within_its_feed_rate()
     slows to v_max and stops once the proportional action alone asks for less than nothing,
     so the WOB overshoots the set-point by at most v_max / K_p plus the line paid out while
     the block decelerates from 0.2 m/s to v_max. Before, the integral started at 0.2 m/s and
-    this slow loop (natural period sqrt(1 / (k_eq K_i)), about 130 s) fed the stopped bit
+    this slow loop (natural period 2 pi / sqrt(k_eq K_i), about 130 s) fed the stopped bit
     to 900 kN at a 200 kN set-point (envelope sweep, 2026-12-02).
     """
     config = load_config(overrides=QUIET + ['drawworks.mode=block_velocity'])
