@@ -282,3 +282,43 @@ def test_a_landing_is_reported_at_its_touch_down_with_the_impacts_peak_weight_on
     assert float(values['peak_weight_on_bit_n']) == pytest.approx(first_peak, rel=1e-5)
     assert float(values['time_to_peak_s']) < LANDING_PEAK_WINDOW_S
     assert first_peak > 3 * wob[touch]
+
+
+def test_a_landing_whose_weight_on_bit_still_rises_is_reported_at_the_windows_end(monkeypatch):
+    """
+    A landing window shorter than the impact's rise (20 ms against some 70 ms on the spring).
+
+    The landing is still reported, once, when the window ends, with the largest WOB since the
+    touch-down (read step by step here) although the WOB is still rising: a bit set down
+    slowly is not left unreported for as long as its WOB grows.
+    """
+    import drill_twin.twin.engine as engine_module
+    window = 0.02
+    monkeypatch.setattr(engine_module, 'LANDING_PEAK_WINDOW_S', window)
+    config = load_config(None, ['integration.time_step_s=0.005'])
+    with threadpool_limits(limits=1, user_api='blas'):
+        engine = _engine(config, members=0)
+        engine.advance(200)
+        engine.set_axial_mode('block_velocity')
+        engine.set_block_velocity(-0.5)
+        engine.advance(600)
+        engine.set_block_velocity(0.0)
+        engine.advance(200)
+        engine.set_block_velocity(0.25)
+        landed, wob, events = None, [], []
+        for _ in range(3000):
+            snapshot = engine.advance(1)
+            events += [e for e in snapshot.events if e.kind == 'landing']
+            if landed is None and engine.simulator.on_bottom()[0]:
+                landed = engine.time_s
+            if landed is not None:
+                wob.append(-float(engine.simulator.last.weight_on_bit_n[0]))
+                if len(wob) > 20:
+                    break
+    steps = int(round(window / engine.dt))
+    assert landed is not None and len(events) == 1
+    assert np.all(np.diff(wob[:steps + 2]) > 0)         # still rising after the window's end
+    assert events[0].time_s == pytest.approx(landed)
+    assert float(events[0].values['time_to_peak_s']) == pytest.approx(window, abs=1e-9)
+    assert float(events[0].values['peak_weight_on_bit_n']) == pytest.approx(wob[steps],
+                                                                            rel=1e-5)

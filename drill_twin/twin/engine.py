@@ -475,10 +475,10 @@ class TwinEngine:
         landing = self._landing
         if landing is not None:
             compression = -float(now.weight_on_bit_n[0])
-            if on_bottom and compression >= landing['peak_n']:
+            rising = on_bottom and compression >= landing['peak_n']
+            if rising:
                 landing.update(peak_n=compression, peak_s=t)
-            elif (not on_bottom or compression < landing['peak_n']
-                  or t - landing['time_s'] >= LANDING_PEAK_WINDOW_S):
+            if not rising or t - landing['time_s'] >= LANDING_PEAK_WINDOW_S:
                 self._report_landing()
         if on_bottom != self._on_bottom:
             hole = float(self.simulator.hole_depth_m[0])
