@@ -15,7 +15,8 @@ Results: docs/ASSIMILATION.md.
 
 The log goes through the MCAP writer and reader of ``drill-twin rig`` / ``assimilate``. The
 scores (the summary keys of ``drill-twin assimilate --summary``) are printed for several
-settling times; the estimated law (the default coefficients with the analysed germ's mean)
+settling times; the estimated law (the default coefficients with the analysed germ's mean,
+and with ``--set assimilation.filter.parameters=law`` the members' mean factors of a1..a5)
 is compared with the truth's law at the operating point (steady ROP and TOB at 0.83 Hz and
 WOB 100 kN), both as the law of the mean germ and as the mean over the analysed members'
 laws (the ensemble's estimate of a quantity nonlinear in the germ: near the law's cutting
@@ -97,13 +98,18 @@ def main() -> None:
                                truth_germ)
     prior_point = steady_point(BitRockLaw.from_config(filter_config.bit_rock), omega, wob)
     filter_law = BitRockLaw.from_config(filter_config.bit_rock)
-    estimated_point = steady_point(filter_law, omega, wob, germ)
-    members = np.array([member_point(filter_law, omega, wob, g)
-                        for g in estimate.final_germs])
+    scales = estimate.final_law_scales                   # None unless parameters is 'law'
+    if scales is None:
+        scales = np.ones((len(estimate.final_germs), 5))
+    estimated_point = steady_point(filter_law.scaled(scales.mean(axis=0)), omega, wob, germ)
+    members = np.array([member_point(filter_law.scaled(s), omega, wob, g)
+                        for s, g in zip(scales, estimate.final_germs)])
     law = {'truth_rop_m_per_s': truth_point[0], 'truth_tob_nm': truth_point[1],
            'prior_rop_m_per_s': prior_point[0], 'prior_tob_nm': prior_point[1],
            'estimated_rop_m_per_s': estimated_point[0], 'estimated_tob_nm': estimated_point[1],
            'estimated_germ': germ.tolist(), 'truth_germ': truth_germ.tolist(),
+           'estimated_law_scales': scales.mean(axis=0).tolist(),
+           'estimated_law_scales_bounds': np.percentile(scales, [2.5, 97.5], axis=0).tolist(),
            'ensemble_rop_m_per_s': float(members[:, 0].mean()),
            'ensemble_tob_nm': float(members[:, 1].mean()),
            'ensemble_rop_bounds_m_per_s': np.percentile(members[:, 0], [2.5, 97.5]).tolist(),

@@ -152,3 +152,49 @@ def test_an_analysed_germ_is_kept_within_bounds_and_a_nan_state_is_refused(small
     np.testing.assert_allclose(germs[2], coordinates_to_germ(wild[2:, -3:])[0], rtol=1e-12)
     assert np.all(np.isfinite(diagonal))
     state.write(vectors)                                   # put the fixture back
+
+
+def test_the_law_factors_are_read_written_bounded_and_change_the_members_law(small_simulator):
+    """
+    Parameters 'law': the germ's coordinates, then log a1 ... a5 factors per member.
+
+    Written back, a member's factors are its integrator's (within LAW_SCALE_LIMIT), the
+    other members keep theirs, and the members' law changes: the torque on bit of a member
+    whose a5 doubled is evaluated with the doubled coefficient.
+    """
+    from drill_twin.assimilation.state import LAW_SCALE_LIMIT, law_scales_for_members
+    sim = small_simulator
+    state = MemberState(sim, 3, ['axial', 'torsional'], parameters='law')
+    assert state.size == MemberState(sim, 3, ['axial', 'torsional']).size + 5
+    vectors = state.extract()
+    np.testing.assert_allclose(vectors[:, -5:], 0.0, atol=1e-15)    # the configured law
+    np.testing.assert_allclose(vectors[:, -8:-5],
+                               germ_to_coordinates(sim.integrator.germ[:3]), rtol=1e-12)
+    before = sim.state.copy()
+    law = vectors.copy()
+    law[:, -5:] = [[0.0, 0.0, 0.0, 0.0, np.log(2.0)], [9.0, -9.0, 0.0, 0.0, 0.0],
+                   [0.1, 0.2, 0.3, 0.4, 0.5]]
+    state.write(law)
+    scales = sim.integrator.law_scales
+    np.testing.assert_allclose(scales[0], [1, 1, 1, 1, 2], rtol=1e-14)
+    np.testing.assert_allclose(scales[1], [LAW_SCALE_LIMIT, 1 / LAW_SCALE_LIMIT, 1, 1, 1],
+                               rtol=1e-14)
+    np.testing.assert_allclose(np.log(scales[2]), law[2, -5:], rtol=1e-14)
+    np.testing.assert_array_equal(scales[3:], 1.0)
+    np.testing.assert_allclose(state.extract()[2, -5:], law[2, -5:], rtol=1e-14)
+    # The law the members now have: Eq. 26 with a5 doubled for member 0.
+    evaluation = sim.integrator.evaluate(sim.state)
+    rop, omega = evaluation.rop_m_per_s[0], evaluation.bit_speed_rad_per_s[0]
+    doubled = sim.law.scaled([1, 1, 1, 1, 2])
+    germ = sim.integrator.germ[:1]
+    expected = doubled.forces(np.array([rop]), np.array([omega]), germ)[1][0]
+    assert evaluation.torque_on_bit_nm[0] == pytest.approx(expected, rel=1e-12)
+    assert expected != pytest.approx(sim.law.forces(np.array([rop]), np.array([omega]),
+                                                    germ)[1][0], rel=1e-3)
+    # Put the fixture back.
+    sim.integrator.law_scales = None
+    sim.set_members(before.q[:3], before.q_rate[:3], before.hole_u[:3])
+    prior = law_scales_for_members(0.15, 0, 2000)
+    assert prior.shape == (2000, 5)
+    assert np.std(np.log(prior)) == pytest.approx(0.15, rel=0.05)
+    assert np.array_equal(prior, law_scales_for_members(0.15, 0, 2000))

@@ -22,6 +22,7 @@ from drill_twin.assimilation.measurements import SENSOR_CHANNELS
 from drill_twin.assimilation.rig_log import RigLog, command_at
 from drill_twin.assimilation.sequential import Sample, SequentialFilter
 from drill_twin.assimilation.settings import AssimilationConfig
+from drill_twin.assimilation.state import law_scales_for_members
 from drill_twin.config.schema import DrillStringConfig
 from drill_twin.dynamics.simulator import Simulator
 from drill_twin.twin.stepping import GuardedSimulator
@@ -38,7 +39,8 @@ class Estimate:
     by :meth:`bounds`; hole_depth_m (k, 2): the analysed and the open-loop members' mean hole
     depth (m); analysis_time_s (a,), nis (a,), measurements (a,) per analysis;
     germ_mean and germ_lower/upper (a, 3): G11, G12, G22 of the analysed members after each
-    analysis.
+    analysis; law_mean and law_lower/upper (a, 5): their factors of a1 ... a5 (NaN unless
+    the law is estimated).
     """
 
     time_s: list = field(default_factory=list)
@@ -51,9 +53,14 @@ class Estimate:
     germ_mean: list = field(default_factory=list)
     germ_lower: list = field(default_factory=list)
     germ_upper: list = field(default_factory=list)
+    law_mean: list = field(default_factory=list)
+    law_lower: list = field(default_factory=list)
+    law_upper: list = field(default_factory=list)
     resets: int = 0
     final_germs: np.ndarray | None = None
     """(N, 2, 2) the analysed members' germs at the end of the log."""
+    final_law_scales: np.ndarray | None = None
+    """(N, 5) the analysed members' factors of a1 ... a5 at the end of the log."""
 
     def add(self, record) -> None:
         """Keep an analysis (:class:`~drill_twin.assimilation.sequential.AnalysisRecord`)."""
@@ -63,6 +70,9 @@ class Estimate:
         self.germ_mean.append(record.germ_mean)
         self.germ_lower.append(record.germ_lower)
         self.germ_upper.append(record.germ_upper)
+        self.law_mean.append(record.law_mean)
+        self.law_lower.append(record.law_lower)
+        self.law_upper.append(record.law_upper)
 
     def bounds(self, which: str = 'filtered', method: str = 'student_t') -> np.ndarray:
         """(k, 3): mean, lower and upper 95 % bound of the bit speed (rad/s)."""
@@ -73,7 +83,7 @@ class Estimate:
         return {name: np.asarray(getattr(self, name), dtype=float) for name in (
             'time_s', 'filtered', 'open_loop', 'hole_depth_m', 'analysis_time_s', 'nis',
             'measurements',
-            'germ_mean', 'germ_lower', 'germ_upper')}
+            'germ_mean', 'germ_lower', 'germ_upper', 'law_mean', 'law_lower', 'law_upper')}
 
 
 def run_filter(config: DrillStringConfig, settings: AssimilationConfig, log: RigLog, *,
@@ -82,7 +92,12 @@ def run_filter(config: DrillStringConfig, settings: AssimilationConfig, log: Rig
     spec = settings.filter
     n = spec.members
     germs = germs_for_realizations(spec.prior_dispersion, spec.seed, range(n))
-    sim = Simulator(config, 2 * n, germs=np.concatenate([germs, germs]), system=system)
+    scales = None
+    if spec.parameters == 'law':
+        scales = law_scales_for_members(spec.law_prior_log_std, spec.seed, n)
+        scales = np.concatenate([scales, scales])
+    sim = Simulator(config, 2 * n, germs=np.concatenate([germs, germs]), system=system,
+                    law_scales=scales)
     guarded = GuardedSimulator(sim, first_member=1, name='ensemble members')
     rng = np.random.default_rng(np.random.SeedSequence(spec.seed, spawn_key=(1,)))
     sequential = SequentialFilter(sim, n, settings, rng)
@@ -111,7 +126,7 @@ def run_filter(config: DrillStringConfig, settings: AssimilationConfig, log: Rig
                 sequential.offer(_sample(log, sensor, index, spec.measurements))
         record = sequential.after_step()
         if record is not None:
-            guarded.guard.set_germs(sim.integrator.germ)
+            guarded.guard.set_germs(sim.integrator.germ, sim.integrator.law_scales)
             estimate.add(record)
         if step in truth_steps or (log.truth is None and step % analysis_every == 0):
             speed = sim.last.bit_speed_rad_per_s
@@ -123,8 +138,10 @@ def run_filter(config: DrillStringConfig, settings: AssimilationConfig, log: Rig
         if progress is not None and step % 200 == 0:
             progress(time, log.duration_s)
     estimate.resets = guarded.resets
-    if spec.parameters == 'germ':
+    if spec.parameters != 'none':
         estimate.final_germs = sequential.state.germs()
+    if spec.parameters == 'law':
+        estimate.final_law_scales = sequential.state.law_scales()
     return estimate
 
 
@@ -178,4 +195,6 @@ def summarise(estimate: Estimate, log: RigLog, settle_s: float,
         count = a['measurements'][late] if late.any() else a['measurements']
         summary['mean_nis_per_measurement'] = float(np.mean(nis / count))
         summary['germ_mean_final'] = [float(v) for v in a['germ_mean'][-1]]
+        if np.all(np.isfinite(a['law_mean'][-1])):
+            summary['law_scales_mean_final'] = [float(v) for v in a['law_mean'][-1]]
     return summary

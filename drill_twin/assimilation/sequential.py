@@ -56,8 +56,9 @@ class AnalysisRecord:
     """
     One analysis.
 
-    Its model time (s), normalised innovation squared and number of measured values, and the
-    analysed members' germ entries (G11, G12, G22): mean, 2.5 % and 97.5 %.
+    Its model time (s), normalised innovation squared and number of measured values, the
+    analysed members' germ entries (G11, G12, G22) and factors of the law's a1 ... a5: mean,
+    2.5 % and 97.5 % (NaN where they are not estimated).
     """
 
     time_s: float
@@ -66,6 +67,9 @@ class AnalysisRecord:
     germ_mean: tuple
     germ_lower: tuple
     germ_upper: tuple
+    law_mean: tuple = (math.nan,) * 5
+    law_lower: tuple = (math.nan,) * 5
+    law_upper: tuple = (math.nan,) * 5
 
 
 def sample_problem(sample: Sample) -> str | None:
@@ -256,13 +260,19 @@ class SequentialFilter:
         return np.stack([germs[:, 0, 0], germs[:, 0, 1], germs[:, 1, 1]], axis=1)
 
     def _summary(self, time_s: float, result) -> AnalysisRecord:
-        if self.state.parameters == 'germ':
-            g = self.germ_entries()
-            mean = tuple(map(float, g.mean(axis=0)))
-            low, high = np.percentile(g, BOUNDS_PERCENT, axis=0)
-            lower, upper = tuple(map(float, low)), tuple(map(float, high))
-        else:
-            mean = lower = upper = (math.nan,) * 3
+        germ, law = ((math.nan,) * 3,) * 3, ((math.nan,) * 5,) * 3
+        if self.state.parameters != 'none':
+            germ = _mean_and_bounds(self.germ_entries())
+        if self.state.parameters == 'law':
+            law = _mean_and_bounds(self.state.law_scales())
         return AnalysisRecord(time_s=float(time_s), nis=float(result.nis),
-                              measurements=result.measurements, germ_mean=mean,
-                              germ_lower=lower, germ_upper=upper)
+                              measurements=result.measurements, germ_mean=germ[0],
+                              germ_lower=germ[1], germ_upper=germ[2], law_mean=law[0],
+                              law_lower=law[1], law_upper=law[2])
+
+
+def _mean_and_bounds(values: np.ndarray) -> tuple[tuple, tuple, tuple]:
+    """Mean, 2.5 % and 97.5 % percentiles of the members' values (N, k), as tuples."""
+    low, high = np.percentile(values, BOUNDS_PERCENT, axis=0)
+    return (tuple(map(float, values.mean(axis=0))), tuple(map(float, low)),
+            tuple(map(float, high)))

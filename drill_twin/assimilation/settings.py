@@ -27,7 +27,7 @@ DEFAULT_FILE = 'assimilation.yaml'
 BLOCKS = ('axial', 'torsional', 'bending_y', 'bending_z')
 
 Method = Literal['etkf', 'enkf']
-Parameters = Literal['germ', 'none']
+Parameters = Literal['germ', 'law', 'none']
 Bounds = Literal['student_t', 'percentile']
 
 
@@ -126,7 +126,10 @@ class Filter:
     measurements that arrived since the last one are used together); measurements: the
     channels it uses; blocks: the reduced-coordinate blocks it analyses (the others are left
     as each member has them: localisation by variable); parameters: germ (the bit-rock germ
-    as an augmented state) or none; prior_dispersion: delta of the members' initial germs;
+    as an augmented state), law (the germ and the log-factors of a1 ... a5 of each member's
+    law) or none; prior_dispersion: delta of the members' initial germs;
+    law_prior_log_std: standard deviation of the members' initial log-factors of a1 ... a5
+    (parameters 'law'; 0.15: a factor of 1.3 at 1.75 sigma);
     bounds: how the 95 % bounds are drawn from the members (bounds.interval);
     model_error_bit_speed_rad_per_s: additive inflation for model error, the standard
     deviation of a centred random change of each member's bit speed after each analysis
@@ -142,6 +145,7 @@ class Filter:
     blocks: tuple[str, ...] = ('axial', 'torsional')
     parameters: Parameters = 'germ'
     prior_dispersion: float = 0.2
+    law_prior_log_std: float = 0.15
     bounds: Bounds = 'student_t'
     model_error_bit_speed_rad_per_s: float = 0.0
     seed: int = 0
@@ -163,6 +167,8 @@ class Filter:
         _check(0 <= self.prior_dispersion < MAX_DISPERSION, 'prior_dispersion',
                f'must be in [0, {MAX_DISPERSION:.4f})', self.prior_dispersion)
         _check(self.seed >= 0, 'seed', 'must be >= 0', self.seed)
+        _check(0 <= self.law_prior_log_std <= 1, 'law_prior_log_std', 'must be in [0, 1]',
+               self.law_prior_log_std)
         _check(self.model_error_bit_speed_rad_per_s >= 0, 'model_error_bit_speed_rad_per_s',
                'must be >= 0', self.model_error_bit_speed_rad_per_s)
         _check(self.model_error_bit_speed_rad_per_s == 0 or 'torsional' in self.blocks,

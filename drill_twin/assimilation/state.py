@@ -4,8 +4,10 @@ The analysed state of a batch of members, read from and written back into a Simu
 Per member the state vector is, in order: the reduced coordinates q of the analysed blocks,
 their rates, the hole's offset below the bit (m, >= 0 off bottom; on bottom 0, or minus the
 depth by which the bit presses a compliant rock) and, with parameters
-'germ', the bit-rock germ's three Cholesky coordinates (log L11, L12, log L22) with
-[G_b] = L^T L, L upper triangular (any value is a symmetric positive-definite germ).
+'germ' or 'law', the bit-rock germ's three Cholesky coordinates (log L11, L12, log L22) with
+[G_b] = L^T L, L upper triangular (any value is a symmetric positive-definite germ); with
+'law' then the logarithms of the factors of the law's a1 ... a5 (any value is a law with
+positive coefficients).
 
 Writing back (:meth:`MemberState.write`) is an adapter over the Simulator's public state
 (``state``, ``integrator``): the new coordinates, the accelerations that balance them
@@ -19,6 +21,10 @@ import numpy as np
 from drill_twin.dynamics.simulator import Simulator
 
 GERM_COORDINATES = ('log_l11', 'l12', 'log_l22')
+LAW_COORDINATES = ('log_a1', 'log_a2', 'log_a3', 'log_a4', 'log_a5')
+LAW_SCALE_LIMIT = 10.0
+"""An analysed member's factors of a1 ... a5 stay within [1/limit, limit]."""
+PARAMETER_COUNT = {'none': 0, 'germ': 3, 'law': 8}
 GERM_DIAGONAL_LIMIT = 100.0
 """An analysed member's germ keeps L11^2 and L22^2 within [1/limit, limit] and |L12| within
 sqrt(limit): the prior at the largest dispersion the twin accepts (0.65) stays inside (20 000
@@ -50,6 +56,17 @@ def bounded_coordinates(coordinates: np.ndarray) -> np.ndarray:
                      np.clip(coordinates[:, 2], -limit, limit)], axis=1)
 
 
+def law_scales_for_members(log_std: float, seed: int, members: int) -> np.ndarray:
+    """
+    Return (members, 5) prior factors of a1 ... a5: exp of centred normals of ``log_std``.
+
+    Drawn from ``numpy.random.default_rng(SeedSequence(seed, spawn_key=(2,)))`` (the germs and
+    the filter's perturbations use other keys of the same seed).
+    """
+    rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(2,)))
+    return np.exp(log_std * rng.standard_normal((members, 5)))
+
+
 def coordinates_to_germ(coordinates: np.ndarray) -> np.ndarray:
     """(m, 3) coordinates -> (m, 2, 2) symmetric positive-definite germs."""
     l11, l12, l22 = np.exp(coordinates[:, 0]), coordinates[:, 1], np.exp(coordinates[:, 2])
@@ -67,7 +84,7 @@ class MemberState:
     :param simulator: the batch (its integrator must carry germs when parameters='germ').
     :param members: how many of its first members are analysed.
     :param blocks: names of the reduced-coordinate blocks analysed ('axial', 'torsional', ...).
-    :param parameters: 'germ' or 'none'.
+    :param parameters: 'germ', 'law' (the germ and the factors of a1 ... a5) or 'none'.
     """
 
     def __init__(self, simulator: Simulator, members: int, blocks, parameters: str = 'germ'):
@@ -77,8 +94,10 @@ class MemberState:
         self.columns = np.concatenate([np.arange(system.size)[system.blocks[b].columns]
                                        for b in blocks])
         self.parameters = parameters
-        if parameters == 'germ' and simulator.integrator.germ is None:
-            raise ValueError("parameters 'germ' needs a simulator with germs")
+        if parameters not in PARAMETER_COUNT:
+            raise ValueError(f'parameters must be one of {", ".join(PARAMETER_COUNT)}')
+        if parameters != 'none' and simulator.integrator.germ is None:
+            raise ValueError(f"parameters {parameters!r} needs a simulator with germs")
         axial = system.blocks['axial']
         self._bit_row = np.zeros(system.size)
         self._bit_row[axial.columns] = axial.shapes[system.bit_node]
@@ -86,7 +105,7 @@ class MemberState:
     @property
     def size(self) -> int:
         """Length of a member's state vector."""
-        return 2 * self.columns.size + 1 + (3 if self.parameters == 'germ' else 0)
+        return 2 * self.columns.size + 1 + PARAMETER_COUNT[self.parameters]
 
     def extract(self) -> np.ndarray:
         """Return the state vectors, shape (members, size)."""
@@ -94,9 +113,18 @@ class MemberState:
         q, rate = state.q[:m], state.q_rate[:m]
         offset = self.simulator.hole_u()[:m] - q @ self._bit_row
         parts = [q[:, self.columns], rate[:, self.columns], offset[:, None]]
-        if self.parameters == 'germ':
+        if self.parameters != 'none':
             parts.append(germ_to_coordinates(self.simulator.integrator.germ[:m]))
+        if self.parameters == 'law':
+            parts.append(np.log(self.law_scales()))
         return np.concatenate(parts, axis=1)
+
+    def law_scales(self) -> np.ndarray:
+        """Return the analysed members' factors of a1 ... a5, (members, 5) (1: the law's)."""
+        scales = self.simulator.integrator.law_scales
+        if scales is None:
+            return np.ones((self.members, 5))
+        return scales[:self.members].copy()
 
     def bit_speed_direction(self) -> np.ndarray:
         """
@@ -128,7 +156,8 @@ class MemberState:
 
         A member on bottom before stays on bottom (pressing a compliant rock as deep as before,
         the force's change acting from the next step); an analysed offset is never negative; a
-        germ is kept within :data:`GERM_DIAGONAL_LIMIT`'s bounds. Raises ValueError for a
+        germ is kept within :data:`GERM_DIAGONAL_LIMIT`'s bounds, a factor of the law within
+        :data:`LAW_SCALE_LIMIT`'s. Raises ValueError for a
         non-finite vector (nothing is written).
         """
         sim, m, k = self.simulator, self.members, self.columns.size
@@ -145,5 +174,8 @@ class MemberState:
         pressed = np.minimum(sim.hole_u()[:m] - state.q[:m] @ self._bit_row, 0.0)
         offset = np.where(was_on_bottom, pressed, np.maximum(vectors[:, 2 * k], 0.0))
         germs = (coordinates_to_germ(bounded_coordinates(vectors[:, 2 * k + 1:2 * k + 4]))
-                 if self.parameters == 'germ' else None)
-        sim.set_members(q, rate, q @ self._bit_row + offset, germs)
+                 if self.parameters != 'none' else None)
+        limit = np.log(LAW_SCALE_LIMIT)
+        scales = (np.exp(np.clip(vectors[:, 2 * k + 4:2 * k + 9], -limit, limit))
+                  if self.parameters == 'law' else None)
+        sim.set_members(q, rate, q @ self._bit_row + offset, germs, scales)

@@ -27,7 +27,7 @@ The law is then continuous, and smooth but for the lift-off cut (docs/MODEL-CHOI
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -70,6 +70,28 @@ class BitRockLaw:
         return np.array([self.a1, self.a2, self.a3, self.a4, self.a5, self.e, self.rop_scale,
                          self.compliance])
 
+    def rows(self, scales: np.ndarray | None = None) -> np.ndarray:
+        """
+        Return the kernels' constants per member, (m, 8), or (1, 8) for one law.
+
+        ``scales``: (m, 5) factors of a1 ... a5 per member (an ensemble filter estimates
+        them), or None. e, r and 1/k are the batch's.
+        """
+        if scales is None:
+            return self.constants[None]
+        scales = np.asarray(scales, dtype=float)
+        if scales.ndim != 2 or scales.shape[1] != 5:
+            raise ValueError(f'law scales must have shape (m, 5), got {scales.shape}')
+        rows = np.repeat(self.constants[None], scales.shape[0], axis=0)
+        rows[:, :5] *= scales
+        return rows
+
+    def scaled(self, scales) -> 'BitRockLaw':
+        """Return this law with a1 ... a5 multiplied by ``scales`` (5,)."""
+        a = np.asarray(scales, dtype=float) * self.constants[:5]
+        return replace(self, a1=float(a[0]), a2=float(a[1]), a3=float(a[2]), a4=float(a[3]),
+                       a5=float(a[4]))
+
     def mean(self, rop, omega):
         """
         Return (f_bit, t_bit) of the regularised law, without the lift-off cut.
@@ -89,10 +111,14 @@ class BitRockLaw:
         force, torque, lifted, _ = _call_law(self, rop, omega, germ)
         return force, torque, lifted
 
-    def forces_and_jacobian(self, rop, omega, germ=None):
-        """(f, t, lifted, J) with J[m] = d(f, t)/d(ROP, omega), shape (m, 2, 2) (analytic)."""
+    def forces_and_jacobian(self, rop, omega, germ=None, scales=None):
+        """
+        (f, t, lifted, J) with J[m] = d(f, t)/d(ROP, omega), shape (m, 2, 2) (analytic).
+
+        ``scales``: (m, 5) factors of a1 ... a5 per member (:meth:`rows`), or None.
+        """
         return _call_law(self, np.asarray(rop, dtype=float), np.asarray(omega, dtype=float),
-                         germ)
+                         germ, scales=scales)
 
     # -- the law as the bit's solve uses it: ROP and torque as functions of the force ------
     def cutting_rate(self, force, omega):
@@ -132,10 +158,7 @@ class BitRockLaw:
 
         Below it, the torque fade never acts on the cutting branch (inf if it never does).
         """
-        if self.a3 <= 0:
-            return float('inf')
-        root = (self.a1 - self.a2 * TORQUE_FADE_FORCE_N) / self.a3
-        return float(np.sqrt(max(root * root - self.e * self.e, 0.0))) if root > 0 else 0.0
+        return float(fade_speeds(self.constants[None])[0])
 
     def torque_of_force(self, force, omega, cutting_rate=None):
         """
@@ -191,6 +214,15 @@ class BitRockLaw:
     def steady_torque(self, omega, weight_on_bit_n):
         """Torque on bit of the regularised law at a steady (ROP, omega)."""
         return self.mean(self.steady_rop(omega, weight_on_bit_n), omega)[1]
+
+
+def fade_speeds(rows: np.ndarray) -> np.ndarray:
+    """:attr:`BitRockLaw.fade_speed_rad_per_s` of each row of constants (m, 8), (m,) rad/s."""
+    a1, a2, a3, e = rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 5]
+    with np.errstate(divide='ignore', invalid='ignore'):
+        root = (a1 - a2 * TORQUE_FADE_FORCE_N) / a3
+        speed = np.sqrt(np.maximum(root * root - e * e, 0.0))
+    return np.where(a3 <= 0, np.inf, np.where(root > 0, speed, 0.0))
 
 
 # -- the compiled law ----------------------------------------------------------------------
@@ -319,14 +351,16 @@ def bit_law(rop, omega, germ, random, constants, cut, force, torque, lifted, jac
     Evaluate the law at every (rop[i], omega[i]) (m,).
 
     Into force, torque, lifted (m,) and jacobian (m, 2, 2); germ (m or 1, 2, 2) is used when
-    ``random``; ``cut``: the lift-off cut (f >= 0: all zero and lifted), else the raw law
-    (lifted False).
+    ``random``; constants (m or 1, 8): the law's (:meth:`BitRockLaw.rows`); ``cut``: the
+    lift-off cut (f >= 0: all zero and lifted), else the raw law (lifted False).
     """
     last = germ.shape[0] - 1
+    last_law = constants.shape[0] - 1
     for i in range(rop.shape[0]):
         g = min(i, last)
         f, t, j00, j01, j10, j11 = law_point(rop[i], omega[i], germ[g, 0, 0], germ[g, 0, 1],
-                                             germ[g, 1, 1], random, constants)
+                                             germ[g, 1, 1], random,
+                                             constants[min(i, last_law)])
         off = cut and f.real >= 0.0
         lifted[i] = off
         if off:
@@ -339,7 +373,7 @@ def bit_law(rop, omega, germ, random, constants, cut, force, torque, lifted, jac
         jacobian[i, 1, 1] = j11
 
 
-def _call_law(law: BitRockLaw, rop, omega, germ, cut: bool = True):
+def _call_law(law: BitRockLaw, rop, omega, germ, cut: bool = True, scales=None):
     """bit_law on arrays of any (broadcast) shape; (f, t, lifted, J)."""
     rop, omega = np.broadcast_arrays(rop, omega)
     shape = rop.shape
@@ -353,7 +387,7 @@ def _call_law(law: BitRockLaw, rop, omega, germ, cut: bool = True):
     random = germ is not None
     germs = (np.ascontiguousarray(germ, dtype=float).reshape(-1, 2, 2) if random
              else _IDENTITY_GERM)
-    bit_law(flat_rop, flat_omega, germs, random, law.constants, cut, force, torque, lifted,
+    bit_law(flat_rop, flat_omega, germs, random, law.rows(scales), cut, force, torque, lifted,
             jacobian)
     return (force.reshape(shape)[()], torque.reshape(shape)[()], lifted.reshape(shape)[()],
             jacobian.reshape(shape + (2, 2)))

@@ -59,6 +59,7 @@ import numpy as np
 import scipy.linalg as la
 
 from drill_twin.dynamics import newmark_kernel as compiled
+from drill_twin.dynamics.bit_rock import fade_speeds
 from drill_twin.dynamics.contact import ContactForces
 from drill_twin.dynamics.forces import ForceEvaluation, Kinematics, NonlinearForces
 from drill_twin.dynamics.newmark_kernel import BETA, GAMMA, VELOCITY_SCALE, VERIFY_EVERY  # noqa
@@ -164,10 +165,13 @@ class NewmarkIntegrator:
     :param tolerance: relative velocity increment that ends the iteration.
     :param max_iterations: iteration cap per step.
     :param germ: (m, 2, 2) random germs of the bit-rock law, or None for the mean model.
+    :param law_scales: (m, 5) factors of the law's a1 ... a5 per member, or None (the
+        configured law for all).
     """
 
     def __init__(self, forces: NonlinearForces, time_step_s: float, tolerance: float,
-                 max_iterations: int, germ: np.ndarray | None = None):
+                 max_iterations: int, germ: np.ndarray | None = None,
+                 law_scales: np.ndarray | None = None):
         system = forces.system
         self.forces = forces
         # f_NL without the bit: the bit-rock law is solved with the 2x2 equation of each
@@ -180,6 +184,7 @@ class NewmarkIntegrator:
         self.tolerance = float(tolerance)
         self.max_iterations = int(max_iterations)
         self._germ = germ
+        self._law_scales = None if law_scales is None else np.array(law_scales, dtype=float)
         n = system.size
         self.mass = system.mass
         self.damping = system.damping
@@ -301,7 +306,7 @@ class NewmarkIntegrator:
             return evaluation
         rop, omega = evaluation.rop_m_per_s, evaluation.bit_speed_rad_per_s
         force, torque, lifted, jacobian = self.forces.law.forces_and_jacobian(
-            rop, omega, self.germ)
+            rop, omega, self.germ, self._law_scales)
         if state.hole_u is not None:
             off = state.q @ self.bit_axial_row < state.hole_u - ON_BOTTOM_TOLERANCE_M
             force, torque = np.where(off, 0.0, force), np.where(off, 0.0, torque)
@@ -321,16 +326,37 @@ class NewmarkIntegrator:
         self._germ = germ
         self._bit_constants = self._law_constants(germ)
 
+    @property
+    def law_scales(self) -> np.ndarray | None:
+        """(m, 5) factors of the bit-rock law's a1 ... a5 per member, or None (the law's)."""
+        return self._law_scales
+
+    @law_scales.setter
+    def law_scales(self, scales: np.ndarray | None) -> None:
+        if scales is not None:
+            scales = np.array(scales, dtype=float)
+            if scales.ndim != 2 or scales.shape[1] != 5 or not np.all(scales > 0):
+                raise ValueError('law scales must be positive, shape (m, 5)')
+        self._law_scales = scales
+        self._bit_constants = self._law_constants(self._germ)
+
+    def adopt(self, source: 'NewmarkIntegrator', members) -> None:
+        """Take ``source``'s germs and law scales of ``members`` (an index or a slice)."""
+        germ, scales = source.germ, source.law_scales
+        self._germ = None if germ is None else germ[members]
+        self.law_scales = None if scales is None else scales[members]
+
     def _law_constants(self, germ) -> tuple:
         law = self.forces.law
         germs = np.eye(2)[None] if germ is None else np.ascontiguousarray(germ, dtype=float)
+        rows = np.ascontiguousarray(law.rows(self._law_scales))
         return (float(self.static_bit_force[0]), bool(self.forces.physics.bit_rock),
-                law.constants, float(law.fade_speed_rad_per_s), germs, germ is not None)
+                rows, np.ascontiguousarray(fade_speeds(rows)), germs, germ is not None)
 
     def with_time_step(self, time_step_s: float) -> 'NewmarkIntegrator':
-        """Return the same integrator (forces, tolerance, germs) with another time step."""
+        """Return the same integrator (forces, tolerance, germs, law) with another time step."""
         return NewmarkIntegrator(self.forces, time_step_s, self.tolerance, self.max_iterations,
-                                 self.germ)
+                                 self.germ, self._law_scales)
 
     def _external_load(self, top_speed, top_acceleration, hook_load_n):
         """

@@ -218,17 +218,18 @@ def update(iteration, force_t, radial, in_contact, tangent, touching, theta_x_ra
             by1[i] += y[j, i] * row1
             speed[i] += work_v[j, i] * work_v[j, i]
     gdt = GAMMA * dt
-    slope = law[7] * GAMMA / (BETA * dt)               # a compliant rock's resting branch
+    slope = law[0, 7] * GAMMA / (BETA * dt)            # a compliant rock's resting branch
     robust_used = 0
     for i in range(members):
         omega = theta_x_rate_t[bit_node, i]
         linear0, linear1 = rop[i] - gdt * by0[i], omega - gdt * by1[i]
         g = min(i, germ.shape[0] - 1)
+        k = min(i, law.shape[0] - 1)
         if bit_rock:
             x0, x1, f0, f1, lifted, j00, j01, j10, j11, solved, robust = _solve_bit(
                 linear0, linear1, flexibilities[i], rop[i], omega, touch[i], slope, gdt,
-                static_force, germ[g, 0, 0], germ[g, 0, 1], germ[g, 1, 1], random, law,
-                fade_speed)
+                static_force, germ[g, 0, 0], germ[g, 0, 1], germ[g, 1, 1], random, law[k],
+                fade_speed[k])
             robust_used |= robust
         else:
             x0, x1, f0, f1 = linear0, linear1, static_force, 0.0
@@ -495,7 +496,8 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out):
     damping blocks (4,), stiffness, stiffness diagonal, S0^-1 blocks (4,), their row groups
     (4, 2), local directions, S0^-1 U, U^T S0^-1 U,
     B^T, S0^-1 B, B^T S0^-1 B, bit axial row, bit axial and torsion DOF, dt, beta dt^2
-    (the contact's), tolerance, static force on bit, bit_rock, law constants, fade speed,
+    (the contact's), tolerance, static force on bit, bit_rock, the law's constants (m or 1,
+    8; BitRockLaw.rows: e, r and 1/k the same in every row), their fade speeds (m or 1,),
     germs, random);
     work: StepWork arrays and the forces' Workspace arrays (the last: the (w, theta_y)
     accelerations, of which only the imbalance's node row is computed, when it is on);
@@ -522,7 +524,7 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out):
     (final_full, final_modal, final_radial, final_contact, final_tangent, bit_rop, bit_omega,
      bit_force, bit_torque, bit_lifted, bit_jacobian, bit_solved) = final
     q_out, q_rate_out, q_acceleration_out, hole_out, finite, converged = out
-    begin(q, q_rate, q_acceleration, hole_in, has_hole, dt, bit_axial_row, law[7] == 0.0,
+    begin(q, q_rate, q_acceleration, hole_in, has_hole, dt, bit_axial_row, law[0, 7] == 0.0,
           d_pred, v_pred, a, touch, hole, error, active, bit_ok)
     cd, cv = BETA * dt * dt, GAMMA * dt
     iterations, robust = 0, 0
@@ -556,7 +558,7 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out):
         if still == 0:
             break
     count = finish(d_pred, v_pred, a, cd, cv, bit_axial_row, hole, bit_force, bit_torque,
-                   law[7], static_force, bit_rows, axial_index, torsion_index, final_full,
+                   law[0, 7], static_force, bit_rows, axial_index, torsion_index, final_full,
                    final_modal, error, bit_ok, tolerance, q_out, q_rate_out,
                    q_acceleration_out, hole_out, finite, converged)
     return iterations, robust, count

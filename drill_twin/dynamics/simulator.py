@@ -139,10 +139,13 @@ class Simulator:
     :param members: batch size m.
     :param germs: (m, 2, 2) random germs of the bit-rock law, or None (mean model).
     :param system: a prebuilt reduced system of ``config`` (built if None).
+    :param law_scales: (m, 5) factors of the law's a1 ... a5 per member, or None (the
+        configured law for every member).
     """
 
     def __init__(self, config: DrillStringConfig, members: int = 1,
-                 germs: np.ndarray | None = None, system: ReducedSystem | None = None):
+                 germs: np.ndarray | None = None, system: ReducedSystem | None = None,
+                 law_scales: np.ndarray | None = None):
         if system is None:
             model, _, basis = modal_analysis(config)
             system = build_reduced_system(model, basis)
@@ -151,11 +154,13 @@ class Simulator:
         self.members = int(members)
         if germs is not None and germs.shape != (self.members, 2, 2):
             raise ValueError(f'germs must have shape ({self.members}, 2, 2)')
+        if law_scales is not None and np.shape(law_scales) != (self.members, 5):
+            raise ValueError(f'law_scales must have shape ({self.members}, 5)')
         self.forces = NonlinearForces(system)
         integration = config.integration
         self.integrator = NewmarkIntegrator(self.forces, integration.time_step_s,
                                             integration.tolerance, integration.max_iterations,
-                                            germs)
+                                            germs, law_scales)
         self._substep_integrators: dict[int, NewmarkIntegrator] = {}
         self._contact_integrator: NewmarkIntegrator | None = None
         self.law = BitRockLaw.from_config(config.bit_rock)
@@ -291,13 +296,15 @@ class Simulator:
             listener(members)
 
     def set_members(self, q: np.ndarray, q_rate: np.ndarray, hole_u: np.ndarray,
-                    germs: np.ndarray | None = None) -> None:
+                    germs: np.ndarray | None = None,
+                    law_scales: np.ndarray | None = None) -> None:
         """
         Put the first k members' reduced coordinates, rates and hole bottoms in place.
 
         An analysis step of data assimilation (drill_twin.assimilation) moves members this way.
         q, q_rate: (k, n); hole_u: (k,) the hole bottom as the bit's axial displacement (m);
-        germs: (k, 2, 2) new random germs of those members, or None (kept). The accelerations
+        germs: (k, 2, 2) new random germs of those members, or None (kept); law_scales: (k, 5)
+        new factors of their law's a1 ... a5, or None (kept). The accelerations
         follow from the equations of motion at the new state, the members' contraction-rate
         history is dropped, and the jump counts as no landing or lift-off.
         """
@@ -311,6 +318,11 @@ class Simulator:
             germ = self.integrator.germ.copy()
             germ[:k] = germs
             self.integrator.germ = germ
+        if law_scales is not None:
+            scales = (np.ones((self.members, 5)) if self.integrator.law_scales is None
+                      else self.integrator.law_scales.copy())
+            scales[:k] = law_scales
+            self.integrator.law_scales = scales
         state = self.state
         new_q, new_rate, hole = state.q.copy(), state.q_rate.copy(), self.hole_u().copy()
         new_q[:k], new_rate[:k], hole[:k] = q, q_rate, hole_u
@@ -468,8 +480,7 @@ class Simulator:
         if integrator is None or integrator.time_step_s != self.dt / count:
             integrator = self._contact_integrator = self.integrator.with_time_step(
                 self.dt / count)
-        germ = self.integrator.germ
-        integrator.germ = None if germ is None else germ[members]
+        integrator.adopt(self.integrator, members)
         integrator.forget(None)
         state = self.state.take(members)
         hook = self._step_hook_load_n
@@ -518,8 +529,7 @@ class Simulator:
         if integrator is None:
             integrator = self.integrator.with_time_step(self.dt / 2 ** level)
             self._substep_integrators[level] = integrator
-        germ = self.integrator.germ
-        integrator.germ = None if germ is None else germ[member:member + 1]
+        integrator.adopt(self.integrator, slice(member, member + 1))
         integrator.forget(None)
         return integrator
 

@@ -40,6 +40,7 @@ from threadpoolctl import threadpool_limits
 
 from drill_twin.assimilation.sequential import AnalysisRecord, Sample, SequentialFilter
 from drill_twin.assimilation.settings import AssimilationConfig
+from drill_twin.assimilation.state import law_scales_for_members
 from drill_twin.config.schema import DrillStringConfig
 from drill_twin.dynamics import rig
 from drill_twin.dynamics.drawworks import FollowedBlock
@@ -127,7 +128,11 @@ class LocalEnsemble:
     def __init__(self, config: DrillStringConfig, settings: EnsembleSettings, system):
         germs = germs_for_realizations(settings.dispersion, settings.seed,
                                        range(settings.members))
-        simulator = Simulator(config, members=settings.members, germs=germs, system=system)
+        spec = None if settings.assimilation is None else settings.assimilation.filter
+        scales = (law_scales_for_members(spec.law_prior_log_std, spec.seed, settings.members)
+                  if spec is not None and spec.parameters == 'law' else None)
+        simulator = Simulator(config, members=settings.members, germs=germs, system=system,
+                              law_scales=scales)
         self.guarded = GuardedSimulator(simulator, first_member=1, name='ensemble members')
         if rig.drawworks_of(simulator) is not None:    # the lines follow the rig's block
             rig.set_axial_mode(simulator, 'hook_load')
@@ -189,7 +194,8 @@ class LocalEnsemble:
                 self.step_index += 1
                 iterations += result.iterations
                 if self.filter is not None and self.filter.after_step() is not None:
-                    self.guarded.guard.set_germs(self.simulator.integrator.germ)
+                    integrator = self.simulator.integrator
+                    self.guarded.guard.set_germs(integrator.germ, integrator.law_scales)
         analyses, events = (), ()
         if self.filter is not None:
             analyses = tuple(self.filter.take_history())

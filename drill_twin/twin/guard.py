@@ -61,9 +61,11 @@ class StateGuard:
     :param law: its bit-rock law (for the torque scale).
     :param envelope: the string's scales (derived from ``system`` if None).
     :param germs: (m, 2, 2) the members' random germs, or None (the mean law).
+    :param law_scales: (m, 5) the members' factors of the law's a1 ... a5, or None.
     """
 
-    def __init__(self, system, law, envelope: StringEnvelope | None = None, germs=None):
+    def __init__(self, system, law, envelope: StringEnvelope | None = None, germs=None,
+                 law_scales=None):
         config = system.model.config
         self.system = system
         self.envelope = envelope or StringEnvelope.of(system)
@@ -74,7 +76,7 @@ class StateGuard:
         """The force scale of the WOB and TOB bounds: the envelope's WOB and a landing's (N)."""
         self.weight_on_bit_max_n = FORCE_MULTIPLE * self.impact_weight_on_bit_n
         self.law = law
-        self.set_germs(germs)
+        self.set_germs(germs, law_scales)
         stiffness = config.borehole.contact_stiffness_n_per_m
         rock = config.bit_rock.contact_stiffness_n_per_m           # None: a rigid rock
         self.bit_penetration_m = self.weight_on_bit_max_n / (
@@ -105,16 +107,23 @@ class StateGuard:
         self._mass = None if np.array_equal(system.mass, np.eye(system.size)) else system.mass
         self._deepest = None
 
-    def set_germs(self, germs) -> None:
+    def set_germs(self, germs, law_scales=None) -> None:
         """
         Derive the TOB bound from the members' germs (m, 2, 2), or the mean law's (None).
 
-        Called again when the germs change (an ensemble filter estimates them).
+        ``law_scales``: (m, 5) the members' factors of a1 ... a5, or None (the law's). Called
+        again when they change (an ensemble filter estimates them).
         """
-        self.torque_on_bit_max_nm = FORCE_MULTIPLE * np.maximum(
-            largest_torque_on_bit_nm(self.law, ENVELOPE_TOP_DRIVE_SPEED_MAX_RAD_PER_S,
-                                     self.impact_weight_on_bit_n, germs), TORQUE_FLOOR_NM)
-        """Scalar (mean law) or (m,) (the members' random laws) (N m)."""
+        speed, force = ENVELOPE_TOP_DRIVE_SPEED_MAX_RAD_PER_S, self.impact_weight_on_bit_n
+        if law_scales is None:
+            largest = largest_torque_on_bit_nm(self.law, speed, force, germs)
+        else:
+            largest = np.array([largest_torque_on_bit_nm(
+                self.law.scaled(scales), speed, force,
+                None if germs is None else germs[i:i + 1])
+                for i, scales in enumerate(law_scales)]).reshape(-1)
+        self.torque_on_bit_max_nm = FORCE_MULTIPLE * np.maximum(largest, TORQUE_FLOOR_NM)
+        """Scalar (mean law) or (m,) (the members' laws) (N m)."""
 
     def rotation_speed_max(self, top_speed_rad_per_s: float) -> float:
         """Bound of |bit speed| (rad/s) at a top-drive speed."""

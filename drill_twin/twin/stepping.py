@@ -77,7 +77,8 @@ class GuardedSimulator:
         self.first_member = first_member
         self.name = name
         self.guard = guard or StateGuard(simulator.system, simulator.law,
-                                         germs=simulator.integrator.germ)
+                                         germs=simulator.integrator.germ,
+                                         law_scales=simulator.integrator.law_scales)
         self.level = 'error' if first_member == 0 else 'warn'
         self.events: list[TwinEvent] = []
         self.resets = 0
