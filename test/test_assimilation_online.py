@@ -193,3 +193,85 @@ def test_an_analysis_that_cannot_be_made_is_skipped_with_a_reason(config, settin
     assert 'skipped' in why and 'not finite' in why and '1 sample(s) unused' in why
     np.testing.assert_array_equal(simulator.state.q, q)
     assert sequential.analyses == 0 and sequential.samples_used == 0
+
+
+@pytest.mark.parametrize('walk', [0.0, 0.02])
+def test_the_filter_estimates_the_laws_factors_and_publishes_them(config, walk):
+    """
+    Parameters 'law': an analysis moves the factors of a1 ... a5, published as the law topics.
+
+    The record holds the factors' mean and percentiles (no law topics for parameters
+    'germ'); a torque at the members' largest prediction changes the factors. With
+    ``parameter_walk_std`` no parameter is left without spread.
+    """
+    from drill_twin.assimilation.state import law_scales_for_members
+    from drill_twin.ros import messages
+    settings = load_assimilation(None, [
+        'assimilation.filter.members=6', 'assimilation.filter.parameters=law',
+        'assimilation.filter.model_error_bit_speed_rad_per_s=0.0',
+        f'assimilation.filter.parameter_walk_std={walk!r}',
+        'assimilation.filter.measurements=[top_torque]'])
+    spec = settings.filter
+    scales = law_scales_for_members(spec.law_prior_log_std, spec.seed, 6)
+    simulator = Simulator(config, 6, germs=germs_for_realizations(0.2, 0, range(6)),
+                          law_scales=scales)
+    sequential = SequentialFilter(simulator, 6, settings, np.random.default_rng(0))
+    for _ in range(20):
+        simulator.step()
+        sequential._record()
+    before = sequential.state.extract()[:, -8:]
+    predicted = sequential._prediction_at(simulator.time_s)[:, 0]
+    sequential.offer(Sample('top_drive', simulator.time_s, {'top_torque': predicted.max()}))
+    record = sequential._analyse_ready()
+    after = sequential.state.extract()[:, -8:]
+    factors = simulator.integrator.law_scales[:6]
+    np.testing.assert_allclose(record.law_mean, factors.mean(axis=0), rtol=1e-12)
+    assert np.all(np.array(record.law_lower) <= record.law_mean)
+    assert np.all(np.array(record.law_mean) <= record.law_upper)
+    assert not np.allclose(after[:, 3:], before[:, 3:])                # the law was analysed
+    if walk:
+        assert np.all(after.std(axis=0) > 0)
+    published = messages.law_messages(record)
+    assert [topic for topic, _ in published] == [
+        '/drill_twin/assimilation/law/mean', '/drill_twin/assimilation/law/lower',
+        '/drill_twin/assimilation/law/upper']
+    assert published[0][1].layout.dim[0].label == 'a1,a2,a3,a4,a5'
+    np.testing.assert_allclose(published[0][1].data, record.law_mean)
+    germ_only = SequentialFilter(simulator, 6, load_assimilation(None, [
+        'assimilation.filter.members=6', 'assimilation.filter.measurements=[top_torque]']),
+        np.random.default_rng(0))
+    simulator.step()
+    germ_only._record()
+    germ_only.offer(Sample('top_drive', simulator.time_s, {'top_torque': predicted.max()}))
+    assert messages.law_messages(germ_only._analyse_ready()) == []
+
+
+def test_the_parameter_walk_is_centred_and_spreads_the_parameters(config):
+    """
+    The walk's kicks keep the parameters' mean of the walk-free analysis and widen the spread.
+
+    The same deterministic (ETKF) analysis with and without the walk.
+    """
+    runs = {}
+    for walk in (0.0, 0.05):
+        settings = load_assimilation(None, [
+            'assimilation.filter.members=6', 'assimilation.filter.parameters=law',
+            'assimilation.filter.model_error_bit_speed_rad_per_s=0.0',
+            'assimilation.filter.method=etkf',
+            f'assimilation.filter.parameter_walk_std={walk!r}',
+            'assimilation.filter.measurements=[top_torque]'])
+        simulator = Simulator(config, 6, germs=germs_for_realizations(0.2, 0, range(6)),
+                              law_scales=np.exp(0.1 * np.random.default_rng(1).standard_normal(
+                                  (6, 5))))
+        sequential = SequentialFilter(simulator, 6, settings, np.random.default_rng(0))
+        for _ in range(10):
+            simulator.step()
+            sequential._record()
+        predicted = sequential._prediction_at(simulator.time_s)[:, 0]
+        sequential.offer(Sample('top_drive', simulator.time_s, {'top_torque': predicted.mean()}))
+        sequential._analyse_ready()
+        runs[walk] = sequential.state.extract()[:, -8:]
+    np.testing.assert_allclose(runs[0.05].mean(axis=0), runs[0.0].mean(axis=0), atol=1e-9)
+    spread_walk = np.sum((runs[0.05] - runs[0.05].mean(axis=0)) ** 2)
+    spread = np.sum((runs[0.0] - runs[0.0].mean(axis=0)) ** 2)
+    assert spread_walk > spread

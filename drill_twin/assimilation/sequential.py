@@ -237,6 +237,11 @@ class SequentialFilter:
         if sigma > 0:                         # additive inflation: centred, the mean unchanged
             kicks = sigma * self.rng.standard_normal(analysed.shape[0])
             analysed += np.outer(kicks - kicks.mean(), self.state.bit_speed_direction())
+        walk = spec.parameter_walk_std
+        count = self.state.parameter_count
+        if walk > 0 and count:                # the same for the parameters: centred kicks
+            kicks = walk * self.rng.standard_normal((analysed.shape[0], count))
+            analysed[:, -count:] += kicks - kicks.mean(axis=0)
         if not np.all(np.isfinite(analysed)):
             self._refuse(f'analysis at {now:.3f} s skipped: it is not finite '
                          f'({used} sample(s) unused)')

@@ -133,7 +133,10 @@ class Filter:
     bounds: how the 95 % bounds are drawn from the members (bounds.interval);
     model_error_bit_speed_rad_per_s: additive inflation for model error, the standard
     deviation of a centred random change of each member's bit speed after each analysis
-    (rad/s, 0: none); seed: of the germs and the perturbations.
+    (rad/s, 0: none); parameter_walk_std: additive inflation of the augmented parameters,
+    the standard deviation of a centred random change of each of their coordinates (log
+    factors, germ coordinates) after each analysis (0: none; it keeps a static parameter's
+    spread from collapsing); seed: of the germs and the perturbations.
     """
 
     method: Method = 'etkf'
@@ -148,6 +151,7 @@ class Filter:
     law_prior_log_std: float = 0.15
     bounds: Bounds = 'student_t'
     model_error_bit_speed_rad_per_s: float = 0.0
+    parameter_walk_std: float = 0.0
     seed: int = 0
 
     def __post_init__(self):
@@ -167,6 +171,8 @@ class Filter:
         _check(0 <= self.prior_dispersion < MAX_DISPERSION, 'prior_dispersion',
                f'must be in [0, {MAX_DISPERSION:.4f})', self.prior_dispersion)
         _check(self.seed >= 0, 'seed', 'must be >= 0', self.seed)
+        _check(0 <= self.parameter_walk_std <= 0.1, 'parameter_walk_std', 'must be in [0, 0.1]',
+               self.parameter_walk_std)
         _check(0 <= self.law_prior_log_std <= 1, 'law_prior_log_std', 'must be in [0, 1]',
                self.law_prior_log_std)
         _check(self.model_error_bit_speed_rad_per_s >= 0, 'model_error_bit_speed_rad_per_s',

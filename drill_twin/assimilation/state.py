@@ -103,6 +103,11 @@ class MemberState:
         self._bit_row[axial.columns] = axial.shapes[system.bit_node]
 
     @property
+    def parameter_count(self) -> int:
+        """How many augmented parameters end a state vector (0, 3 or 8)."""
+        return PARAMETER_COUNT[self.parameters]
+
+    @property
     def size(self) -> int:
         """Length of a member's state vector."""
         return 2 * self.columns.size + 1 + PARAMETER_COUNT[self.parameters]

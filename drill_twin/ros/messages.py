@@ -334,6 +334,28 @@ def germ_messages(record):
             (itf.ASSIMILATION_GERM_UPPER, array(record.germ_upper))]
 
 
+def law_messages(record):
+    """
+    Return (topic, message) of an analysis's estimated factors of the law's a1 ... a5.
+
+    The analysed members' mean, 2.5 % and 97.5 % (std_msgs/Float64MultiArray, one dimension
+    labelled 'a1,a2,a3,a4,a5'; 1 is the configured law); none when the filter does not
+    estimate the law (parameters other than 'law').
+    """
+    if not all(math.isfinite(v) for v in record.law_mean):
+        return []
+
+    def array(values):
+        return Float64MultiArray(
+            layout=MultiArrayLayout(dim=[MultiArrayDimension(label='a1,a2,a3,a4,a5', size=5,
+                                                             stride=5)]),
+            data=[float(v) for v in values])
+
+    return [(itf.ASSIMILATION_LAW_MEAN, array(record.law_mean)),
+            (itf.ASSIMILATION_LAW_LOWER, array(record.law_lower)),
+            (itf.ASSIMILATION_LAW_UPPER, array(record.law_upper))]
+
+
 def clock(time_ns: int) -> Clock:
     """rosgraph_msgs/Clock at ``time_ns`` (ns)."""
     return Clock(clock=stamp(time_ns))
@@ -395,7 +417,8 @@ def publications(stations_m, *, ensemble: bool, clock: bool, tf: bool,
             topics[topic] = (JointState, state)
     if assimilation:
         for topic in (itf.ASSIMILATION_GERM_MEAN, itf.ASSIMILATION_GERM_LOWER,
-                      itf.ASSIMILATION_GERM_UPPER):
+                      itf.ASSIMILATION_GERM_UPPER, itf.ASSIMILATION_LAW_MEAN,
+                      itf.ASSIMILATION_LAW_LOWER, itf.ASSIMILATION_LAW_UPPER):
             topics[topic] = (Float64MultiArray, state)
     for x_m in stations_m:
         topics[itf.vibration_imu_topic(x_m)] = (Imu, state)

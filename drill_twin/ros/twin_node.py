@@ -506,8 +506,10 @@ class TwinNode(Node):
                 self._report(event.level, event.message)
         for record in snapshot.analyses:
             self._innovations.append((record.nis, record.measurements))
-        if snapshot.analyses:                       # the latest analysis's germ
-            for topic, message in messages.germ_messages(snapshot.analyses[-1]):
+        if snapshot.analyses:                       # the latest analysis's germ (and law)
+            latest = snapshot.analyses[-1]
+            for topic, message in (messages.germ_messages(latest)
+                                   + messages.law_messages(latest)):
                 self._publish(topic, message, now)
         if self.log and not self.log.open:          # a write failed (disk full, ...)
             self._on_log_failure(now)
