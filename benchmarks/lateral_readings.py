@@ -1,10 +1,12 @@
 """Tabulate `drill-twin simulate` runs against the paper's lateral figures (issue 12, section 1).
 
-    python benchmarks/lateral_readings.py RUN.npz [RUN.npz ...] [--window 200 250]
+    python benchmarks/lateral_readings.py RUN.npz [RUN.npz ...] [--window 200 250] [--period 5]
 
 For each run (the npz of ``drill-twin simulate --out``): the radial displacement at 700 m
-over the window (largest, mean, share of the time at or above 2 cm; the paper's Figs. 11 and
-14 show a sustained few centimetres) and its spectrum (shares of the energy of the radial
+over the window (largest, mean, share of the time at or above 2 cm, and its amplitude: the
+smallest over consecutive spans of ``--period`` seconds, about one stick-slip cycle, of the
+largest displacement in each; the paper's Figs. 11 and 14 show a sustained few centimetres
+of a signed displacement that crosses zero) and its spectrum (shares of the energy of the radial
 displacement below 0.1 Hz, 0.1-0.5 Hz and above 0.5 Hz, after removing the mean), wall
 contact (impact episodes and lift-off episodes in the window and over the run, the largest
 wall force), the bit speed (lowest: the paper's Figs. 10 and 13 fall to about zero), the
@@ -18,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 
-def row(path: Path, start: float, stop: float) -> dict:
+def row(path: Path, start: float, stop: float, period: float = 5.0) -> dict:
     d = np.load(path, allow_pickle=True)
     t = d['time_s']
     window = (t >= start - 1e-9) & (t <= stop + 1e-9)
@@ -29,12 +31,17 @@ def row(path: Path, start: float, stop: float) -> dict:
     total = spectrum.sum() or 1.0
     impacts = d['impacts_so_far']
     lift_offs = d['lift_offs_so_far']
+    times = t[window]
+    spans = np.arange(start, stop - period + 1e-9, period)
+    amplitude = min(radial[(times >= a - 1e-9) & (times < a + period - 1e-9)].max()
+                    for a in spans) if spans.size else float('nan')
     first = int(np.argmax(window))
     last = len(t) - 1 - int(np.argmax(window[::-1]))
     return {
         'run': path.stem,
         'radial_max_cm': 100 * radial.max(), 'radial_mean_cm': 100 * radial.mean(),
         'at_least_2cm': float(np.mean(radial >= 0.02)),
+        'amplitude_min_cm': 100 * amplitude,
         'below_0.1Hz': spectrum[frequency < 0.1].sum() / total,
         '0.1-0.5Hz': spectrum[(frequency >= 0.1) & (frequency <= 0.5)].sum() / total,
         'above_0.5Hz': spectrum[frequency > 0.5].sum() / total,
@@ -56,8 +63,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('runs', type=Path, nargs='+')
     parser.add_argument('--window', type=float, nargs=2, default=(200.0, 250.0))
+    parser.add_argument('--period', type=float, default=5.0,
+                        help='span of the amplitude (s, default 5: a stick-slip cycle)')
     args = parser.parse_args()
-    rows = [row(p, *args.window) for p in args.runs]
+    rows = [row(p, *args.window, args.period) for p in args.runs]
     for key in rows[0]:
         values = [r[key] for r in rows]
         text = [v if isinstance(v, str) else (f'{v:d}' if isinstance(v, int) else f'{v:.4g}')
