@@ -132,6 +132,29 @@ def main() -> None:
                'open_loop_rop_m_per_s': float(np.polyfit(t_w, a['hole_depth_m'][window, 1],
                                                          1)[0])}
     law['drilled'] = drilled
+    # The same comparison at every set-point the log visited (the law the twin saw last is
+    # that of the last one): the mean law of the analysed members against the truth's.
+    estimated_law = filter_law.scaled(scales.mean(axis=0))
+    truth_law = BitRockLaw.from_config(truth_config.bit_rock)
+    visited, hz, weight = [], filter_config.operation.top_drive_speed_hz, wob
+    points = [(0.0, hz, weight)]
+    for point in rig_settings.rig.schedule:
+        if point.time_s >= log.duration_s:
+            break
+        hz = point.top_drive_speed_hz if point.top_drive_speed_hz is not None else hz
+        weight = (wob - point.hook_load_change_n if point.hook_load_change_n is not None
+                  else weight)
+        points.append((point.time_s, hz, weight))
+    for since, hz, weight in points:
+        speed = 2 * math.pi * hz
+        t_rop, t_tob = steady_point(truth_law, speed, weight, truth_germ)
+        e_rop, e_tob = steady_point(estimated_law, speed, weight, germ)
+        visited.append({'from_s': since, 'top_drive_speed_hz': hz, 'weight_on_bit_n': weight,
+                        'truth_rop_m_per_s': t_rop, 'truth_tob_nm': t_tob,
+                        'estimated_rop_m_per_s': e_rop, 'estimated_tob_nm': e_tob,
+                        'rop_relative_error': e_rop / t_rop - 1,
+                        'tob_relative_error': e_tob / t_tob - 1})
+    law['at_visited_set_points'] = visited
     result = {'duration_s': log.duration_s, 'members': args.members,
               'truth_scale': args.scale, 'truth_delta': args.truth_delta,
               'torque_bias_nm': args.torque_bias, 'filter': repr(filter_settings.filter),
@@ -167,6 +190,11 @@ def main() -> None:
           f'{drilled["filtered_rop_m_per_s"] * 1e3:.3f} '
           f'({100 * (drilled["filtered_rop_m_per_s"] / drilled["truth_rop_m_per_s"] - 1):+.1f} %), '
           f'open loop {drilled["open_loop_rop_m_per_s"] * 1e3:.3f}')
+    for v in visited:
+        print(f'law at {v["top_drive_speed_hz"]:g} Hz, WOB {v["weight_on_bit_n"] / 1e3:g} kN '
+              f'(from {v["from_s"]:g} s): ROP truth {v["truth_rop_m_per_s"] * 1e3:.3f} mm/s, '
+              f'estimated {100 * v["rop_relative_error"]:+.1f} %; TOB truth '
+              f'{v["truth_tob_nm"]:.0f} N m, estimated {100 * v["tob_relative_error"]:+.1f} %')
 
 
 def member_point(law: BitRockLaw, omega: float, wob: float, germ) -> tuple[float, float]:
