@@ -202,6 +202,10 @@ class LiftOffEpisodes:
     def update(self, lifted: np.ndarray, weight_on_bit_n: np.ndarray) -> None:
         """Feed one step: the bit's lifted flag and f_bit (N, < 0 in compression), (m,)."""
         lifted = np.asarray(lifted, dtype=bool)
+        if not (lifted.any() or self.lifted.any()):       # on the rock before and now
+            if self.opened.any():
+                self.opened = np.zeros(self.members, dtype=bool)
+            return
         reloaded = ~lifted & (-np.asarray(weight_on_bit_n, dtype=float) >= self.release_n)
         self.opened = lifted & ~self.lifted
         self.count += self.opened

@@ -82,6 +82,11 @@ class TopAxialMotion:
         u, v = self._predicted(0, hook_load_n)
         return float(u), float(v)
 
+    def speed_below(self, speed_m_per_s: float) -> bool:
+        """Return whether every member's top moves slower than ``speed_m_per_s`` now (m/s)."""
+        velocity = self.simulator.state.q_rate[:, self.columns] @ self.row
+        return bool(np.max(np.abs(velocity)) < speed_m_per_s)
+
     def now_members(self) -> tuple[np.ndarray, np.ndarray]:
         """(u_top, u_top') of every member at the current state, (m,) each (m, m/s)."""
         state, c = self.simulator.state, self.columns
@@ -240,10 +245,14 @@ class HookBrake:
 
     def hook_load(self, command_n):
         """Return the hook load to apply over the coming step: the command, or the brake's."""
-        _, velocity = self.top.now_members()
-        changed = not np.array_equal(command_n, self._last_command)
-        self._last_command = np.copy(command_n)
-        if not changed and np.all(np.abs(velocity) < 0.5 * self.speed_max_m_per_s):
+        if np.ndim(command_n) == 0:
+            changed = self._last_command is None or np.ndim(self._last_command) != 0 \
+                or float(command_n) != self._last_command
+            self._last_command = float(command_n)
+        else:
+            changed = not np.array_equal(command_n, self._last_command)
+            self._last_command = np.copy(command_n)
+        if not changed and self.top.speed_below(0.5 * self.speed_max_m_per_s):
             return command_n                    # one step cannot reach the cap from here
         state = self.simulator.state
         if not all(np.all(np.isfinite(x)) for x in (state.q, state.q_rate, state.q_acceleration)):

@@ -439,6 +439,8 @@ class Simulator:
         integrated together, as one batch on the finer step; if that fails, member by member
         on the retry's sub-steps, and a member that fails even so keeps its full step.
         """
+        if self.last.contact_tangent is None and result.forces.contact_tangent is None:
+            return new_state, result                  # no node touched before or after
         before = self.last.contact.in_contact
         after = result.forces.contact.in_contact
         changed = np.flatnonzero(np.any(before != after, axis=1))
