@@ -141,3 +141,34 @@ def test_the_rock_never_drives_the_bit(stiffness):
     if stiffness != 'null':
         assert pressing > 0                 # the case: the bit rising while it presses
     assert max(power) <= 0.0
+
+
+@pytest.mark.parametrize('germ', [None, [[1.05, 0.02], [0.02, 0.95]]])
+def test_an_evaluated_state_of_a_rising_bit_has_the_resting_torque(germ):
+    """
+    A state whose bit rises on bottom (ROP -1.5 mm/s) evaluates to a torque opposing the spin.
+
+    The state evaluation (after a reset or an analysis: what is published until the next
+    step) reads the law at the state's velocities; at that ROP Eq. 25 still presses (about
+    -17 kN) and Eq. 26 gives t = -Z (a4 ROP / root + a5), about +1 kN m at 5.2 rad/s: the
+    rock would drive the bit. It is the resting branch's torque at the law's force instead,
+    as in the step's solve.
+    """
+    config = load_config(None, CHEAP + ['integration.time_step_s=0.005'])
+    with threadpool_limits(limits=1, user_api='blas'):
+        germs = None if germ is None else np.array([germ], dtype=float)
+        simulator = Simulator(config, germs=germs)
+        for _ in range(40):
+            simulator.step()
+        integrator = simulator.integrator
+        state = simulator.state.copy()
+        row = integrator.bit_axial_row
+        state.q_rate[0] += (-1.5e-3 - state.q_rate[0] @ row) * row / (row @ row)
+        evaluation = integrator.evaluate(state)
+    rop, omega = evaluation.rop_m_per_s[0], evaluation.bit_speed_rad_per_s[0]
+    force, torque = evaluation.weight_on_bit_n[0], evaluation.torque_on_bit_nm[0]
+    assert rop == pytest.approx(-1.5e-3, rel=1e-9) and omega > 1.0 and force < -1e4
+    law = simulator.law
+    assert law.forces(np.array([rop]), np.array([omega]), germs)[1][0] > 500.0  # Eq. 26's
+    assert torque == pytest.approx(law.torque_of_force(force, omega), rel=1e-12)
+    assert torque * omega <= 0.0

@@ -296,7 +296,8 @@ class NewmarkIntegrator:
         f_NL at a state.
 
         With the bit-rock law of Eq. 25 at its velocities when the bit is on bottom (and no
-        rock force when it is off bottom).
+        rock force when it is off bottom); a bit rising on bottom (ROP < 0) gets the torque of
+        the law's resting branch at its force (docs/MODEL-CHOICES.md).
         """
         fields = Kinematics.of(self.system, state.q, state.q_rate, state.q_acceleration,
                                state.top_speed_rad_per_s, state.top_acceleration_rad_per_s2,
@@ -307,6 +308,17 @@ class NewmarkIntegrator:
         rop, omega = evaluation.rop_m_per_s, evaluation.bit_speed_rad_per_s
         force, torque, lifted, jacobian = self.forces.law.forces_and_jacobian(
             rop, omega, self.germ, self._law_scales)
+        rising = (rop < 0.0) & ~lifted
+        if np.any(rising):
+            # A bit rising while it still presses the rock does not cut: its torque is the
+            # resting branch's at that force (as the step's solve has it; Eq. 26 read at a
+            # negative ROP would make the rock drive the bit). Its Jacobian is not the law's.
+            torque, jacobian = np.array(torque, dtype=float), np.array(jacobian)
+            for i in np.flatnonzero(rising):
+                law = (self.forces.law if self._law_scales is None
+                       else self.forces.law.scaled(self._law_scales[i]))
+                torque[i] = law.torque_of_force(force[i], omega[i])
+                jacobian[i] = 0.0
         if state.hole_u is not None:
             off = state.q @ self.bit_axial_row < state.hole_u - ON_BOTTOM_TOLERANCE_M
             force, torque = np.where(off, 0.0, force), np.where(off, 0.0, torque)
