@@ -9,6 +9,7 @@ stamps, and that bad samples are refused with a reason while the twin goes on.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -66,6 +67,26 @@ def test_the_twin_analyses_exactly_what_the_offline_filter_does(config, settings
 
     One model step a tick: the same bit speeds to the last bit, the same analyses.
     """
+    _engine_against_offline(config, settings, rig_log, separate_process)
+
+
+@pytest.mark.parametrize('separate_process', [False, True])
+def test_the_twin_estimates_the_law_as_the_offline_filter_does(config, settings, rig_log,
+                                                               separate_process):
+    """
+    With parameters 'law' too (the members' own a1 ... a5, in the worker process as well).
+
+    The same members and analyses as offline, the law's factors among them.
+    """
+    law = replace(settings, filter=replace(settings.filter, parameters='law'))
+    analyses, offline = _engine_against_offline(config, law, rig_log, separate_process)
+    np.testing.assert_array_equal([a.law_mean for a in analyses], offline['law_mean'])
+    assert np.all(np.isfinite(offline['law_mean']))
+    assert not np.allclose(offline['law_mean'][-1], offline['law_mean'][0])
+
+
+def _engine_against_offline(config, settings, rig_log, separate_process):
+    """Run the engine over the log's samples and compare with run_filter; (analyses, offline)."""
     spec = settings.filter
     offline = run_filter(config, settings, rig_log).arrays()
     engine = TwinEngine(config, EnsembleSettings(
@@ -94,6 +115,7 @@ def test_the_twin_analyses_exactly_what_the_offline_filter_does(config, settings
     np.testing.assert_array_equal([a.germ_mean for a in analyses], offline['germ_mean'])
     assert snapshot.health['measurements_used'] > 0
     assert snapshot.health['measurements_refused'] == 0
+    return analyses, offline
 
 
 def _filter(config, settings, members=4):
