@@ -110,7 +110,7 @@ def synthetic_messages(duration_s: float = 10.0, rate_hz: float = 100.0,
     Yield messages of every twin topic in time order.
 
     State topics, KPIs, the ensemble and /clock come at ``rate_hz``; commands, an estimated
-    germ and an event (/diagnostics) at 1 Hz; a /rosout line every 2 s.
+    germ and law and an event (/diagnostics) at 1 Hz; a /rosout line every 2 s.
     """
     stations = [float(x) for x in stations_m]
     n_steps = int(round(duration_s * rate_hz))
@@ -133,8 +133,11 @@ def synthetic_messages(duration_s: float = 10.0, rate_hz: float = 100.0,
                                    messages.command_applied(topic, value, t_ns), t_ns)
             analysis = AnalysisRecord(time_s=step / rate_hz, nis=1.0, measurements=2,
                                       germ_mean=(1.0, 0.01 * step, 1.1),
-                                      germ_lower=(0.9, -0.1, 1.0), germ_upper=(1.1, 0.1, 1.2))
-            for topic, message in messages.germ_messages(analysis):
+                                      germ_lower=(0.9, -0.1, 1.0), germ_upper=(1.1, 0.1, 1.2),
+                                      law_mean=(1.0, 1.0, 1.0, 1.0 + 0.001 * step, 1.0),
+                                      law_lower=(0.9,) * 5, law_upper=(1.1,) * 5)
+            for topic, message in (messages.germ_messages(analysis)
+                                   + messages.law_messages(analysis)):
                 yield TimedMessage(topic, message, t_ns)
         plan = messages.TickPlan(kpis=True, ensemble_stamp_ns=t_ns, clock=True)
         for topic, message in messages.tick_messages(snapshot, stations, t_ns, plan):

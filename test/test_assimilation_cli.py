@@ -77,6 +77,22 @@ def test_assimilate_writes_the_estimate_and_the_summary(rig_log, tmp_path):
         assert f'/drill_twin/assimilation/bit_state/{name}' in written
         assert f'/drill_twin/assimilation/germ/{name}' in written
     assert '/diagnostics' in written and '/rig/truth/bit_state' in written
+    assert '/drill_twin/assimilation/law/mean' not in written      # the germ only: no law
+
+
+def test_assimilate_estimates_the_law_when_asked(rig_log, tmp_path):
+    """Parameters 'law': the factors of a1 ... a5 in EST.mcap and in the summary."""
+    from drill_twin.recording.reader import topics
+
+    summary, out = tmp_path / 's.json', tmp_path / 'est.mcap'
+    drill_twin('assimilate', str(rig_log), *SMALL, *SENSORS, '--members', '2',
+               '--set', 'assimilation.filter.parameters=law', '--out', str(out),
+               '--summary', str(summary), '--settle', '0.1', check=True)
+    factors = json.loads(summary.read_text())['law_scales_mean_final']
+    assert len(factors) == 5 and all(0.1 <= f <= 10 for f in factors)
+    written = topics(out)
+    for name in ('mean', 'lower', 'upper'):
+        assert f'/drill_twin/assimilation/law/{name}' in written
 
 
 @pytest.mark.parametrize('args, words', [

@@ -157,7 +157,33 @@ def test_live_view_sends_every_analysis_of_a_twin_that_assimilates():
     assert np.allclose(np.ravel(rec.rows('ensemble/germ/g12/upper')[1]), 2 * times)
     assert np.allclose(np.ravel(rec.rows('ensemble/germ/g22/lower')[1]), 1.5)
 
-    def views(assimilation):
-        return ' '.join(str(v.name) for v in layout._ensemble_tab(assimilation).contents)
+    def views(assimilation, law=False):
+        return ' '.join(str(v.name) for v in layout._ensemble_tab(assimilation, law).contents)
     assert 'Estimated bit-rock germ' in views(True)
     assert 'Estimated bit-rock germ' not in views(False)
+    assert "Estimated factors of the law's" in views(True, law=True)
+    assert "Estimated factors of the law's" not in views(True)
+    assert 'ensemble/law/a1/mean' not in rec.sent            # the germ only: no law sent
+
+
+def test_live_view_sends_the_estimated_law_when_the_filter_estimates_it():
+    """An analysis with the law's factors (parameters 'law') sends them at its time."""
+    import dataclasses
+
+    from drill_twin.assimilation.sequential import AnalysisRecord
+    rec, clock = Capture(), FakeClock()
+    view = LiveView((), recording=rec, clock=clock, assimilation=True, law=True)
+    for i in range(1, 31):
+        clock.now += 0.01
+        t = i * 0.01
+        analyses = (AnalysisRecord(time_s=t, nis=1.0, measurements=2, germ_mean=(1.0, 0.0, 1.0),
+                                   germ_lower=(1.0, 0.0, 1.0), germ_upper=(1.0, 0.0, 1.0),
+                                   law_mean=(1.0, 1.0, 1.0, 1.0 + t, 1.0),
+                                   law_lower=(0.9,) * 5, law_upper=(1.1,) * 5),
+                    ) if i % 10 == 0 else ()
+        view.update(dataclasses.replace(snapshot(t, stations=0), analyses=analyses))
+    view.close()
+    times, a4 = rec.rows('ensemble/law/a4/mean')
+    assert np.allclose(times, [0.1, 0.2, 0.3])
+    assert np.allclose(np.ravel(a4), 1.0 + times)
+    assert np.allclose(np.ravel(rec.rows('ensemble/law/a2/upper')[1]), 1.1)

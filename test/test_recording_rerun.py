@@ -197,6 +197,18 @@ def test_the_estimated_germ_is_sent_entry_by_entry():
                            mean[:, column] + 0.2)
 
 
+def test_the_estimated_law_is_sent_factor_by_factor():
+    rec = Capture()
+    mean = np.array([[1.0, 0.9, 1.1, 1.2, 0.8], [1.1, 0.9, 1.0, 1.3, 0.7]])
+    layout.send_law(rec, [1.0, 2.0], mean, mean - 0.1, mean + 0.2)
+    for column, key in enumerate(('a1', 'a2', 'a3', 'a4', 'a5')):
+        assert np.allclose(np.ravel(rec.rows(f'ensemble/law/{key}/mean')[1]), mean[:, column])
+        assert np.allclose(np.ravel(rec.rows(f'ensemble/law/{key}/lower')[1]),
+                           mean[:, column] - 0.1)
+        assert np.allclose(np.ravel(rec.rows(f'ensemble/law/{key}/upper')[1]),
+                           mean[:, column] + 0.2)
+
+
 def test_orbit_segments_and_wall():
     g = geometry()
     assert g.station_clearance_m == pytest.approx((0.15 - 0.0635, 0.15 - 0.0635))
@@ -286,6 +298,8 @@ def test_save_rrd_is_self_contained_with_blueprint(log_path, rerun_env, tmp_path
                            ('/ensemble/rop/band', 'Scalars:scalars'),
                            ('/ensemble/germ/g12/mean', 'Scalars:scalars'),
                            ('/ensemble/germ/g22/upper', 'Scalars:scalars'),
+                           ('/ensemble/law/a4/mean', 'Scalars:scalars'),
+                           ('/ensemble/law/a1/lower', 'Scalars:scalars'),
                            ('/lateral/x600m/orbit', 'LineStrips2D:strips'),
                            ('/lateral/x1200m/pipe', 'Ellipses2D:centers'),
                            ('/lateral/x1200m/wall', 'Ellipses2D:half_sizes'),
@@ -303,7 +317,7 @@ def test_save_rrd_is_self_contained_with_blueprint(log_path, rerun_env, tmp_path
                              env=rerun_env, capture_output=True, text=True, check=True,
                              timeout=60).stdout
     for text in ('run time', 'Orbit at 1200 m', 'Bit speed (rpm)', 'Surface torque (kN·m)',
-                 'Estimated bit-rock germ',
+                 'Estimated bit-rock germ', "Estimated factors of the law's a1",
                  'Wall contact force (kN) vs depth (m)', layout.APPLICATION_ID):
         assert text in verbose, text
     assert 'message_log_time' not in verbose              # no wall-clock timeline

@@ -9,7 +9,8 @@ model time from 0 (ns):
 - /drill_twin/assimilation/open_loop/bit_state/{mean,lower,upper}: the same ensemble without
   analysis;
 - /drill_twin/assimilation/germ/{mean,lower,upper}: the estimated bit-rock germ (std_msgs/
-  Float64MultiArray [G11, G12, G22]) after each analysis;
+  Float64MultiArray [G11, G12, G22]) after each analysis, and with parameters 'law'
+  /drill_twin/assimilation/law/{mean,lower,upper}: the factors of the law's a1 ... a5;
 - /diagnostics: per analysis the normalised innovation squared and its count of
   measurements (diagnostic_msgs/DiagnosticArray, name 'drill_twin: assimilation');
 - the log's truth (/rig/truth/bit_state), when it has one.
@@ -20,6 +21,8 @@ import argparse
 import json
 import math
 from pathlib import Path
+
+import numpy as np
 
 from drill_twin import interface as itf
 from drill_twin.cli.common import UsageError, add_config_arguments, blamed
@@ -142,10 +145,11 @@ def write_estimate(path, estimate, log, method: str = 'student_t') -> None:
                 messages.append((t, f'{PREFIX}{kind}/bit_state/{name}', message))
     for k, time_s in enumerate(a['analysis_time_s']):
         t = int(round(time_s * 1e9))
-        if a['germ_mean'].size:
-            for name in ('mean', 'lower', 'upper'):
-                messages.append((t, f'{PREFIX}/germ/{name}',
-                                 array(data=[float(v) for v in a[f'germ_{name}'][k]])))
+        for estimated in ('germ', 'law'):           # what the filter estimates (not NaN)
+            if a[f'{estimated}_mean'].size and np.all(np.isfinite(a[f'{estimated}_mean'][k])):
+                for name in ('mean', 'lower', 'upper'):
+                    messages.append((t, f'{PREFIX}/{estimated}/{name}', array(
+                        data=[float(v) for v in a[f'{estimated}_{name}'][k]])))
         status = diag_status(level=b'\x00', name='drill_twin: assimilation',
                              message='analysis', hardware_id='drill_twin')
         status.values = [key_value(key='nis', value=f'{a["nis"][k]:.6g}'),

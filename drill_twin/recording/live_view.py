@@ -42,12 +42,14 @@ class LiveView:
     :param active_tab: the tab shown first (index or name, see ``rerun_layout.TABS``).
     :param clock: wall clock (s) for the send rate (tests pass a fake one).
     :param assimilation: the twin assimilates: the ensemble tab shows the estimated germ.
+    :param law: its filter estimates the law's coefficients too: the ensemble tab shows them.
     """
 
     def __init__(self, stations_m: Sequence[float], config=None, *, recording=None,
                  sample_rate_hz: float = 50.0, profile_rate_hz: float = 10.0,
                  send_rate_hz: float = 4.0, active_tab: int | str = 0,
-                 clock: Callable[[], float] = time.monotonic, assimilation: bool = False):
+                 clock: Callable[[], float] = time.monotonic, assimilation: bool = False,
+                 law: bool = False):
         import rerun as rr
 
         if config is None:
@@ -56,7 +58,8 @@ class LiveView:
             config = load_config(None)
         self.geometry = layout.StringGeometry.from_config(config, stations_m)
         self.blueprint = layout.twin_blueprint(self.geometry, active_tab=active_tab,
-                                               follow=True, assimilation=assimilation)
+                                               follow=True, assimilation=assimilation,
+                                               law=law)
         self.recording = recording if recording is not None else rr.RecordingStream(
             layout.APPLICATION_ID)
         self.sample_period_s = 1.0 / sample_rate_hz
@@ -107,7 +110,8 @@ class LiveView:
     # -- data --------------------------------------------------------------------------------
     def _clear(self) -> None:
         self._rows: dict[str, list] = {'bit': [], 'top': [], 'kpi': [], 'ensemble': [],
-                                       'germ': [], 'station': [], 'profile': [], 'health': []}
+                                       'germ': [], 'law': [], 'station': [], 'profile': [],
+                                       'health': []}
         self._events: list[tuple[float, str, str]] = []
         self._commands: dict[str, list] = {'speed': [], 'hook': []}
 
@@ -125,6 +129,9 @@ class LiveView:
         for record in snapshot.analyses:            # every analysis (a few per second)
             self._rows['germ'].append((record.time_s, *record.germ_mean, *record.germ_lower,
                                        *record.germ_upper))
+            if all(np.isfinite(record.law_mean)):
+                self._rows['law'].append((record.time_s, *record.law_mean, *record.law_lower,
+                                          *record.law_upper))
         if t >= self._next_sample:
             self._next_sample = t + self.sample_period_s - 1e-9
             self._sample(snapshot, t)
@@ -199,6 +206,9 @@ class LiveView:
         if rows['germ']:
             germ = np.asarray(rows['germ'], dtype=float)
             layout.send_germ(rec, germ[:, 0], germ[:, 1:4], germ[:, 4:7], germ[:, 7:10])
+        if rows['law']:
+            law = np.asarray(rows['law'], dtype=float)
+            layout.send_law(rec, law[:, 0], law[:, 1:6], law[:, 6:11], law[:, 11:16])
         if rows['station']:
             station = np.asarray(rows['station'])
             for k in range(len(geometry.stations_m)):

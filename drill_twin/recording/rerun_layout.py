@@ -13,7 +13,7 @@ of SI values (one row per sample) and are the one place where units are converte
 entities named; both views call them.
 
 Entities (under ``/``): ``bit/*``, ``top/*``, ``cmd/*``, ``kpi/*``, ``ensemble/germ/<g>/{mean,
-lower,upper}`` (assimilation), ``ensemble/<q>/{band,
+lower,upper}`` and ``ensemble/law/<a>/{mean,lower,upper}`` (assimilation), ``ensemble/<q>/{band,
 mean,model}``, ``lateral/<station>/*`` (orbit, pipe, wall, radial deflection),
 ``along/*`` (contact force and deflection along the depth), ``diagnostics/*``, ``rosout``.
 
@@ -145,6 +145,10 @@ ENSEMBLE_QUANTITIES = {
 }
 GERM_ENTRIES = {'g11': ('G11', BLUE), 'g12': ('G12', ORANGE), 'g22': ('G22', GREEN)}
 """The estimated bit-rock germ's entries (assimilation), in message order, and their colours."""
+LAW_ENTRIES = {'a1': ('a1', BLUE), 'a2': ('a2', ORANGE), 'a3': ('a3', GREEN),
+               'a4': ('a4', RED), 'a5': ('a5', PURPLE)}
+"""The estimated factors of the law's a1 ... a5 (assimilation, parameters 'law'), in message
+order, and their colours."""
 
 
 def log_styles(recording, geometry: StringGeometry) -> None:
@@ -165,12 +169,13 @@ def log_styles(recording, geometry: StringGeometry) -> None:
             names='ensemble mean', colors=BLUE, widths=2.5), static=True)
         recording.log(f'ensemble/{key}/model', rr.SeriesLines(
             names='mean model', colors=ORANGE, widths=1.2), static=True)
-    for key, (name, colour) in GERM_ENTRIES.items():
-        recording.log(f'ensemble/germ/{key}/mean', rr.SeriesLines(
-            names=f'{name} (mean)', colors=colour, widths=2.0), static=True)
-        for bound in ('lower', 'upper'):
-            recording.log(f'ensemble/germ/{key}/{bound}', rr.SeriesLines(
-                names=f'{name} (95 %)', colors=colour, widths=0.8), static=True)
+    for group, entries in (('germ', GERM_ENTRIES), ('law', LAW_ENTRIES)):
+        for key, (name, colour) in entries.items():
+            recording.log(f'ensemble/{group}/{key}/mean', rr.SeriesLines(
+                names=f'{name} (mean)', colors=colour, widths=2.0), static=True)
+            for bound in ('lower', 'upper'):
+                recording.log(f'ensemble/{group}/{key}/{bound}', rr.SeriesLines(
+                    names=f'{name} (95 %)', colors=colour, widths=0.8), static=True)
     for x_m, outer_m, gap_m in zip(geometry.stations_m, geometry.station_outer_radius_m,
                                    geometry.station_clearance_m):
         _log_cross_section(recording, station_entity(x_m), geometry.borehole_radius_m,
@@ -300,6 +305,18 @@ def send_germ(recording, t_s, mean, lower, upper) -> None:
     for column, key in enumerate(GERM_ENTRIES):
         for bound, values in (('mean', mean), ('lower', lower), ('upper', upper)):
             _scalars(recording, f'ensemble/germ/{key}/{bound}', t_s,
+                     np.asarray(values, dtype=float)[:, column])
+
+
+def send_law(recording, t_s, mean, lower, upper) -> None:
+    """
+    Send the estimated factors of the law's a1 ... a5 of the analyses (parameters 'law').
+
+    Arrays (n, 5): the analysed members' mean, 2.5 % and 97.5 % (1: the configured law).
+    """
+    for column, key in enumerate(LAW_ENTRIES):
+        for bound, values in (('mean', mean), ('lower', lower), ('upper', upper)):
+            _scalars(recording, f'ensemble/law/{key}/{bound}', t_s,
                      np.asarray(values, dtype=float)[:, column])
 
 
@@ -553,7 +570,7 @@ def _lateral_tab(geometry: StringGeometry):
         row_shares=[3, 1], name=TAB_TITLES['lateral'])
 
 
-def _ensemble_tab(assimilation: bool = False):
+def _ensemble_tab(assimilation: bool = False, law: bool = False):
     import rerun.blueprint as rrb
 
     views = []
@@ -565,6 +582,12 @@ def _ensemble_tab(assimilation: bool = False):
         views.append(_series(
             'Estimated bit-rock germ: G11 (blue), G12 (orange), G22 (green); mean, 95 % (thin)',
             [f'ensemble/germ/{key}/{b}' for key in GERM_ENTRIES
+             for b in ('lower', 'upper', 'mean')]))
+    if assimilation and law:
+        views.append(_series(
+            "Estimated factors of the law's a1 (blue), a2 (orange), a3 (green), a4 (red), "
+            'a5 (purple); 1: the configured law; mean, 95 % (thin)',
+            [f'ensemble/law/{key}/{b}' for key in LAW_ENTRIES
              for b in ('lower', 'upper', 'mean')]))
     return rrb.Vertical(*views, name=TAB_TITLES['ensemble'])
 
@@ -588,7 +611,7 @@ def _diagnostics_tab():
 
 
 def twin_blueprint(geometry: StringGeometry, *, active_tab: int | str = 0,
-                   follow: bool = True, assimilation: bool = False):
+                   follow: bool = True, assimilation: bool = False, law: bool = False):
     """
     Build the rerun blueprint of the twin's views (tabs :data:`TABS`).
 
@@ -596,11 +619,12 @@ def twin_blueprint(geometry: StringGeometry, *, active_tab: int | str = 0,
     :param follow: start with the time cursor following the newest data (at the end of a
         recorded run, moving with a live one).
     :param assimilation: the ensemble tab shows the estimated germ too.
+    :param law: and the estimated factors of the law's coefficients (parameters 'law').
     """
     import rerun.blueprint as rrb
 
     tabs = rrb.Tabs(_bit_tab(), _driller_tab(), _lateral_tab(geometry),
-                    _ensemble_tab(assimilation),
+                    _ensemble_tab(assimilation, law),
                     _diagnostics_tab(), active_tab=tab_index(active_tab))
     return rrb.Blueprint(tabs,
                          rrb.TimePanel(timeline=TIMELINE, state='collapsed',

@@ -30,6 +30,8 @@ PROFILE_RATE_HZ = 10.0
 GERM_TOPICS = (itf.ASSIMILATION_GERM_MEAN, itf.ASSIMILATION_GERM_LOWER,
                itf.ASSIMILATION_GERM_UPPER)
 """The estimated germ (assimilation): mean, 2.5 % and 97.5 % of [G11, G12, G22]."""
+LAW_TOPICS = (itf.ASSIMILATION_LAW_MEAN, itf.ASSIMILATION_LAW_LOWER, itf.ASSIMILATION_LAW_UPPER)
+"""The estimated factors of the law's a1 ... a5 (parameters 'law'): mean, 2.5 %, 97.5 %."""
 HEALTH_NAME = 'drill_twin: twin health'
 
 
@@ -117,7 +119,7 @@ def read_run(files: Sequence[Path], stations_m: Sequence[float] | None = None) -
                 stamp, position, velocity, effort = cdr.joint_state(data)
                 run.rows['top'].append(((stamp - epoch) * 1e-9, velocity[0], effort[0],
                                         effort[1]))
-            elif topic in GERM_TOPICS:
+            elif topic in GERM_TOPICS or topic in LAW_TOPICS:
                 run.rows[topic].append((log_s, *cdr.float64_multi_array(data)))
             elif topic in (itf.ENSEMBLE_MEAN, itf.ENSEMBLE_LOWER, itf.ENSEMBLE_UPPER):
                 stamp, position, velocity, effort = cdr.joint_state(data)
@@ -270,6 +272,10 @@ def _send_germ(recording, run: RunColumns) -> None:
     n = min(mean.shape[0], lower.shape[0], upper.shape[0])
     if n:
         layout.send_germ(recording, mean[:n, 0], mean[:n, 1:], lower[:n, 1:], upper[:n, 1:])
+    mean, lower, upper = (run.array(topic, 6) for topic in LAW_TOPICS)
+    n = min(mean.shape[0], lower.shape[0], upper.shape[0])
+    if n:
+        layout.send_law(recording, mean[:n, 0], mean[:n, 1:], lower[:n, 1:], upper[:n, 1:])
 
 
 def write_rrd(source, rrd_path: str | os.PathLike, stations_m: Sequence[float] | None = None,
@@ -289,7 +295,8 @@ def write_rrd(source, rrd_path: str | os.PathLike, stations_m: Sequence[float] |
     run = read_run(files)
     geometry = geometry_of(run, stations_m)
     blueprint = layout.twin_blueprint(geometry, active_tab=active_tab,
-                                      assimilation=bool(run.rows.get(itf.ASSIMILATION_GERM_MEAN)))
+                                      assimilation=bool(run.rows.get(itf.ASSIMILATION_GERM_MEAN)),
+                                      law=bool(run.rows.get(itf.ASSIMILATION_LAW_MEAN)))
     rrd_path = Path(rrd_path)
     recording = rr.RecordingStream(application_id, recording_id=files[0].stem)
     try:

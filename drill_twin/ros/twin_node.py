@@ -773,8 +773,11 @@ def _run(ros_args: list[str], view: str | None = None, console: bool = False) ->
         node = create_twin_node(params)
         if view:
             from drill_twin.recording.live_view import LiveView
+            settings = node.engine.ensemble.assimilation
             node.live_view = LiveView(node.stations_m, node.config,
-                                      assimilation=node.engine.assimilating)
+                                      assimilation=node.engine.assimilating,
+                                      law=settings is not None
+                                      and settings.filter.parameters == 'law')
             node.live_view.spawn_viewer(web=(view == 'web'))
         if console:
             from drill_twin.cli.console import StatusPrinter
