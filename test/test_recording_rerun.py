@@ -317,7 +317,7 @@ def test_save_rrd_is_self_contained_with_blueprint(log_path, rerun_env, tmp_path
                              env=rerun_env, capture_output=True, text=True, check=True,
                              timeout=60).stdout
     for text in ('run time', 'Orbit at 1200 m', 'Bit speed (rpm)', 'Surface torque (kN·m)',
-                 'Estimated bit-rock germ', "Estimated factors of the law's a1",
+                 'Estimated bit-rock germ', 'Law factors a1..a5',
                  'Wall contact force (kN) vs depth (m)', layout.APPLICATION_ID):
         assert text in verbose, text
     assert 'message_log_time' not in verbose              # no wall-clock timeline

@@ -585,8 +585,8 @@ def _ensemble_tab(assimilation: bool = False, law: bool = False):
              for b in ('lower', 'upper', 'mean')]))
     if assimilation and law:
         views.append(_series(
-            "Estimated factors of the law's a1 (blue), a2 (orange), a3 (green), a4 (red), "
-            'a5 (purple); 1: the configured law; mean, 95 % (thin)',
+            'Law factors a1..a5 (blue, orange, green, red, purple; 1 = configured), '
+            'mean, 95 % (thin)',
             [f'ensemble/law/{key}/{b}' for key in LAW_ENTRIES
              for b in ('lower', 'upper', 'mean')]))
     return rrb.Vertical(*views, name=TAB_TITLES['ensemble'])
