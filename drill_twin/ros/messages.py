@@ -316,6 +316,15 @@ def ensemble_messages(snapshot: TwinSnapshot, time_ns: int):
                                  (itf.ENSEMBLE_UPPER, snapshot.ensemble_upper))]
 
 
+def _labelled_array(label: str, values) -> Float64MultiArray:
+    """std_msgs/Float64MultiArray of ``values`` with one dimension labelled ``label``."""
+    data = [float(v) for v in values]
+    return Float64MultiArray(
+        layout=MultiArrayLayout(dim=[MultiArrayDimension(label=label, size=len(data),
+                                                         stride=len(data))]),
+        data=data)
+
+
 def germ_messages(record):
     """
     Return (topic, message) of an analysis's estimated germ.
@@ -323,15 +332,10 @@ def germ_messages(record):
     [G11, G12, G22] of the analysed members' mean, 2.5 % and 97.5 %
     (std_msgs/Float64MultiArray, one dimension labelled 'G11,G12,G22').
     """
-    def array(values):
-        return Float64MultiArray(
-            layout=MultiArrayLayout(dim=[MultiArrayDimension(label='G11,G12,G22', size=3,
-                                                             stride=3)]),
-            data=[float(v) for v in values])
-
-    return [(itf.ASSIMILATION_GERM_MEAN, array(record.germ_mean)),
-            (itf.ASSIMILATION_GERM_LOWER, array(record.germ_lower)),
-            (itf.ASSIMILATION_GERM_UPPER, array(record.germ_upper))]
+    return [(topic, _labelled_array('G11,G12,G22', values)) for topic, values in (
+        (itf.ASSIMILATION_GERM_MEAN, record.germ_mean),
+        (itf.ASSIMILATION_GERM_LOWER, record.germ_lower),
+        (itf.ASSIMILATION_GERM_UPPER, record.germ_upper))]
 
 
 def law_messages(record):
@@ -344,16 +348,10 @@ def law_messages(record):
     """
     if not all(math.isfinite(v) for v in record.law_mean):
         return []
-
-    def array(values):
-        return Float64MultiArray(
-            layout=MultiArrayLayout(dim=[MultiArrayDimension(label='a1,a2,a3,a4,a5', size=5,
-                                                             stride=5)]),
-            data=[float(v) for v in values])
-
-    return [(itf.ASSIMILATION_LAW_MEAN, array(record.law_mean)),
-            (itf.ASSIMILATION_LAW_LOWER, array(record.law_lower)),
-            (itf.ASSIMILATION_LAW_UPPER, array(record.law_upper))]
+    return [(topic, _labelled_array('a1,a2,a3,a4,a5', values)) for topic, values in (
+        (itf.ASSIMILATION_LAW_MEAN, record.law_mean),
+        (itf.ASSIMILATION_LAW_LOWER, record.law_lower),
+        (itf.ASSIMILATION_LAW_UPPER, record.law_upper))]
 
 
 def clock(time_ns: int) -> Clock:
