@@ -8,6 +8,7 @@ the configurations and commands that produced nonsense before (issue 9): a 3 MN 
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -16,6 +17,7 @@ from threadpoolctl import threadpool_limits
 from drill_twin.config import ConfigError, load_config
 from drill_twin.dynamics import kpi
 from drill_twin.dynamics.member_measures import measure_members
+from drill_twin.dynamics.newmark import BatchState
 from drill_twin.dynamics.simulator import Simulator
 from drill_twin.twin.engine import CommandRejected, EnsembleSettings, TwinEngine
 from drill_twin.twin.envelope import (ENVELOPE_WEIGHT_ON_BIT_MAX_N,
@@ -297,6 +299,73 @@ def test_the_guards_measures_are_the_states_own():
     np.testing.assert_allclose(top_rate[ok], rate[ok][:, axial] @ top_row, rtol=1e-14)
     np.testing.assert_allclose(kinetic[ok], 0.5 * np.sum(rate[ok] ** 2, axis=1), rtol=1e-14)
     assert not np.any(bit_u[~ok]) and not np.any(top_rate[~ok]) and not np.any(kinetic[~ok])
+
+
+def test_the_compiled_screen_decides_as_the_full_check(config):
+    """
+    The one-pass screen (member_measures.screen_members) flags exactly the members check words.
+
+    40 copies of a converged state, each with one quantity set at 0.6, 0.9, 1.1 or 1.4 times
+    its bound (or not finite): the bit's four quantities, the top's axial speed, the kinetic
+    energy, the depth against the hole and the surface, one node's lateral displacement. The
+    full check (measure everything, then word the reasons) is run with the screen switched off.
+    """
+    simulator = Simulator(config)
+    simulator.step()
+    guard = StateGuard(simulator.system, simulator.law)
+    system, one, last = simulator.system, simulator.state, simulator.last
+    members = 40
+    state = BatchState(one.time_s, np.repeat(one.q, members, axis=0),
+                       np.repeat(one.q_rate, members, axis=0),
+                       np.repeat(one.q_acceleration, members, axis=0), one.top_angle_rad,
+                       one.top_speed_rad_per_s, one.top_acceleration_rad_per_s2, one.hook_load_n,
+                       np.repeat(one.hole_u, members))
+    bit = {name: np.repeat(getattr(last, name), members).astype(float)
+           for name in ('rop_m_per_s', 'bit_speed_rad_per_s', 'weight_on_bit_n',
+                        'torque_on_bit_nm')}
+    hole = np.full(members, simulator.hole_depth_m[0])
+    top = state.top_speed_rad_per_s
+    axial, torsion = system.blocks['axial'].columns, system.blocks['torsional'].columns
+    bending = system.blocks['bending_z']
+    shape = bending.shapes[:system.n_nodes, 0]
+    node = int(np.argmax(np.abs(shape) / guard.lateral_max_m))      # the first to touch
+    bounds = {'rop_m_per_s': guard.axial_speed_max_m_per_s,
+              'bit_speed_rad_per_s': guard.rotation_speed_max(top),
+              'weight_on_bit_n': guard.weight_on_bit_max_n,
+              'torque_on_bit_nm': float(guard.torque_on_bit_max_nm)}
+    for k in range(members):
+        factor = (0.6, 0.9, 1.1, 1.4)[k // 10]
+        kind = k % 10
+        if kind < 4:
+            name = list(bounds)[kind]
+            bit[name][k] = factor * bounds[name] * (-1) ** (k // 10)
+        elif kind == 4:
+            state.q_rate[k, axial] = 0.0
+            state.q_rate[k, axial.start] = factor * guard.axial_speed_max_m_per_s / (
+                guard._top_row[0])
+        elif kind == 5:
+            state.q_rate[k, torsion] = 0.0
+            state.q_rate[k, torsion.start] = factor * math.sqrt(
+                2 * guard.kinetic_energy_max(top))
+        elif kind == 6:
+            hole[k] -= (factor - 0.5) * 2 * guard.bit_penetration_m
+        elif kind == 7:                      # the bit at (1 - factor) x the string's length
+            state.q[k, axial.start] -= factor * guard.string_length_m / guard._bit_row[0]
+        elif kind == 8:
+            for name in ('bending_y', 'bending_z'):          # the first mode of w alone
+                state.q[k, system.blocks[name].columns] = 0.0
+            state.q[k, bending.columns.start] = factor * guard.lateral_max_m[node] / shape[node]
+        else:
+            [state.q, state.q_rate, state.q_acceleration][k % 3][k, k] = [np.nan, np.inf][k % 2]
+    forces = SimpleNamespace(**bit)
+    batch = SimpleNamespace(state=state, last=forces, hole_depth_m=hole)
+    screened = guard._screen(batch, state, forces).copy()
+    guard._screen = lambda *arguments: None
+    reasons = guard.check(batch)
+    kinds = np.arange(members) % 10
+    assert all(screened[kinds == kind].sum() == 2 for kind in range(9))   # 1.1 and 1.4
+    assert screened[kinds == 9].all()
+    assert sorted(np.flatnonzero(screened).tolist()) == sorted(reasons)
 
 
 # -- KPIs: finite or nothing -----------------------------------------------------------------

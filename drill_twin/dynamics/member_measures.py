@@ -10,6 +10,8 @@ the arithmetic.
 """
 from __future__ import annotations
 
+import math
+
 from drill_twin.dynamics.compiled import kernel
 
 
@@ -42,3 +44,54 @@ def measure_members(q, q_rate, q_acceleration, axial_start, bit_row, top_row, fi
         bit_u[i] = depth if ok else 0.0
         top_rate[i] = speed if ok else 0.0
         kinetic[i] = 0.5 * energy if ok else 0.0
+
+
+@kernel
+def screen_members(q, q_rate, q_acceleration, axial_start, bit_row, top_row, rop, omega, wob,
+                   tob, hole_depth_m, bounds, torque_max, lateral, v, w, lateral_max, bad):
+    """
+    Set bad (m,) where a member breaks a bound of the state guard; return how many do.
+
+    The state guard's decision (:class:`~drill_twin.twin.guard.StateGuard`) in one pass, with
+    an identity mass: state and bit quantities finite, the bit's depth (``bounds[0]`` the
+    string's length + the bit's axial displacement) between 0 and hole_depth_m (m,) +
+    ``bounds[1]`` (the bit's penetration), |ROP| and the top's axial speed <= bounds[2], |bit
+    speed| <= bounds[3], |WOB| <= bounds[4], kinetic energy <= bounds[5], |TOB| <=
+    torque_max (1 or m,), and with ``lateral`` every node's radial displacement
+    hypot(v, w) <= lateral_max (n_nodes,), v and w (m, n_nodes) the nodes' lateral
+    displacements (m).
+    """
+    members, n = q.shape
+    size = bit_row.shape[0]
+    nodes = lateral_max.shape[0]
+    count = 0
+    for i in range(members):
+        nan_test = 0.0
+        energy = 0.0
+        for j in range(n):
+            rate = q_rate[i, j]
+            nan_test += (q[i, j] - q[i, j]) + (rate - rate) + (q_acceleration[i, j]
+                                                               - q_acceleration[i, j])
+            energy += rate * rate
+        depth = 0.0
+        speed = 0.0
+        for c in range(size):
+            depth += bit_row[c] * q[i, axial_start + c]
+            speed += top_row[c] * q_rate[i, axial_start + c]
+        depth += bounds[0]
+        bit = rop[i] + omega[i] + wob[i] + tob[i]
+        broken = not (nan_test == 0.0 and bit - bit == 0.0)
+        broken = broken or not (depth >= 0.0 and depth <= hole_depth_m[i] + bounds[1])
+        broken = broken or not (abs(rop[i]) <= bounds[2] and abs(speed) <= bounds[2])
+        broken = broken or not (abs(omega[i]) <= bounds[3] and abs(wob[i]) <= bounds[4])
+        broken = broken or not (0.5 * energy <= bounds[5])
+        broken = broken or not (abs(tob[i]) <= torque_max[min(i, torque_max.shape[0] - 1)])
+        if lateral and not broken:
+            for node in range(nodes):
+                square = v[i, node] * v[i, node] + w[i, node] * w[i, node]
+                limit = lateral_max[node]
+                if not square < limit * limit * (1.0 - 1e-12):        # hypot near the bound
+                    broken = broken or not (math.hypot(v[i, node], w[i, node]) <= limit)
+        bad[i] = broken
+        count += broken
+    return count

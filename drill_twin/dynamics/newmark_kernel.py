@@ -29,7 +29,8 @@ GAMMA = 0.5
 VELOCITY_SCALE = 1e-9
 """Added to the velocity norm in the convergence test (modal units, sqrt(kg) m/s)."""
 VERIFY_EVERY = 25
-"""A step runs at least two iterations this often, to measure the contraction rate."""
+"""Every step whose end is a multiple of this many time steps on the model's clock runs at
+least two iterations for every member, to measure the contraction rate."""
 
 
 class StepWork:
@@ -132,7 +133,7 @@ def update(iteration, force_t, radial, in_contact, tangent, touching, theta_x_ra
            mass, mass_is_identity, damping, stiffness, stiffness_diagonal, effective_inverse,
            groups, local_directions, local_response, local_gram, bit_rows, bit_response,
            bit_flexibility, dt, dt2, tolerance, load, static_force, bit_rock, law, fade_speed,
-           germ, random, have_rate, have_active, rate, since, previous_contact,
+           germ, random, have_rate, have_active, rate, due, previous_contact,
            previous_lifted, work_d, work_v, a, modal, residual, y, product, responses, touch,
            error, previous_error, active, bit_ok, scratch, flexibilities, on_wall, final_full,
            final_modal, final_radial, final_contact, final_tangent, bit_rop, bit_omega,
@@ -142,8 +143,8 @@ def update(iteration, force_t, radial, in_contact, tangent, touching, theta_x_ra
 
     The Newmark update of the module docstring of :mod:`newmark`, per member.
 
-    Updates a, error, active, bit_ok, the bit of the active members and the bookkeeping
-    (rate, since) in place, and keeps the evaluation of the frozen members (at their final
+    Updates a, error, active, bit_ok, the bit of the active members and the contraction
+    rates (rate) in place, and keeps the evaluation of the frozen members (at their final
     state) in final_*. Loops over the n coordinates run with the members innermost (the
     arrays' layout); the per-member work (the bit, the decisions) runs member by member.
     scratch (6, m), flexibilities (m, 2, 2), responses (m, n, 2) (S^-1 B of members on the
@@ -265,9 +266,9 @@ def update(iteration, force_t, radial, in_contact, tangent, touching, theta_x_ra
         if was_active:
             error[i] = new_error
         now = was_active and np.isfinite(error[i]) and bit_ok[i]
-        done = now and error[i] <= tolerance
+        done = now and error[i] <= tolerance and not (iteration == 1 and due)
         if iteration == 1 and now and have_rate:
-            accept = np.isfinite(rate[i]) and since[i] < VERIFY_EVERY
+            accept = np.isfinite(rate[i]) and not due
             if accept and have_active:
                 accept = previous_lifted[i] == bit_lifted[i]
                 for node in range(n_nodes):
@@ -279,7 +280,8 @@ def update(iteration, force_t, radial, in_contact, tangent, touching, theta_x_ra
             measured = error[i] / previous_error[i]
             if measured < 1.0:
                 rate[i] = measured
-                since[i] = 0
+            elif due:
+                rate[i] = np.nan                 # not contracting: verify until it does
         active[i] = now and not done
         still += active[i]
     return still, robust_used
@@ -488,7 +490,8 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out):
 
     state: (q, q_rate, q_acceleration (m, n) members first, hole (m,), has_hole);
     step_inputs: (top_speed, top_acceleration, load (n, m), max_iterations);
-    bookkeeping: (have_rate, have_active, rate, since, previous_contact, previous_lifted);
+    bookkeeping: (have_rate, have_active, rate, due (this step verifies: VERIFY_EVERY),
+    previous_contact, previous_lifted);
     forces: the arguments of forces.string_forces before the kinematics (the last two: the
     imbalance's, excitation.ImbalanceForce.arguments, and the rotating damping's,
     rotating_damping.RotatingDampingOperators.arguments);
@@ -509,7 +512,7 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out):
     """
     q, q_rate, q_acceleration, hole_in, has_hole = state
     top_speed, top_acceleration, load, max_iterations = step_inputs
-    have_rate, have_active, rate, since, previous_contact, previous_lifted = bookkeeping
+    have_rate, have_active, rate, due, previous_contact, previous_lifted = bookkeeping
     (switches, strain_arguments, coupling_arguments, contact_arguments, imbalance,
      rotating) = forces
     (shapes, shapes_t, ranges, bit_node, n_nodes, mass, mass_is_identity, damping, stiffness,
@@ -549,7 +552,7 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out):
             mass, mass_is_identity, damping, stiffness, stiffness_diagonal, effective_inverse,
             groups, local_directions, local_response, local_gram, bit_rows, bit_response,
             bit_flexibility, dt, dt2, tolerance, load, static_force, bit_rock, law,
-            fade_speed, germ, random, have_rate, have_active, rate, since, previous_contact,
+            fade_speed, germ, random, have_rate, have_active, rate, due, previous_contact,
             previous_lifted, d, v, a, modal, residual, y, product, responses, touch, error,
             previous_error, active, bit_ok, scratch, flexibilities, on_wall, final_full,
             final_modal, final_radial, final_contact, final_tangent, bit_rop, bit_omega,

@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from drill_twin.dynamics.member_measures import measure_members
+from drill_twin.dynamics.member_measures import measure_members, screen_members
 from drill_twin.twin.envelope import (ENVELOPE_TOP_DRIVE_SPEED_MAX_RAD_PER_S,
                                       PLAUSIBLE_BLOCK_SPEED_M_PER_S, StringEnvelope,
                                       largest_torque_on_bit_nm)
@@ -109,6 +109,9 @@ class StateGuard:
         identity = np.allclose(system.mass, np.eye(system.size), rtol=0.0, atol=1e-9)
         self._mass = None if identity else system.mass
         self._deepest = None
+        self._screen_work = None
+        self._lateral_max = np.ascontiguousarray(self.lateral_max_m, dtype=float)
+        self._no_nodes = np.zeros((0, self._lateral_max.shape[0]))
 
     def set_germs(self, germs, law_scales=None) -> None:
         """
@@ -144,6 +147,9 @@ class StateGuard:
     def check(self, simulator) -> dict[int, str]:
         """{member: why} for every member of ``simulator`` whose state breaks a bound."""
         state, forces = simulator.state, simulator.last
+        screened = self._screen(simulator, state, forces)
+        if screened is not None and not screened.any():
+            return {}
         with np.errstate(invalid='ignore', over='ignore'):
             values = self._measure(simulator, state, forces)
             bad = ~values['finite']
@@ -157,6 +163,40 @@ class StateGuard:
                        for k in np.flatnonzero(bad)}
         self._remember(values['depth'], reasons)
         return reasons
+
+    def _screen(self, simulator, state, forces) -> np.ndarray | None:
+        """
+        Return the members that break a bound, (m,) bools, decided in one compiled pass.
+
+        The same decision as :meth:`check`'s (member_measures.screen_members), which measures
+        and words everything only when a member breaks a bound. None where the pass does not
+        apply (a mass other than the identity, a simulator without its hole's depth).
+        """
+        hole = getattr(simulator, 'hole_depth_m', None)
+        if self._mass is not None or hole is None:
+            return None
+        members = state.q.shape[0]
+        if self._screen_work is None or self._screen_work.shape != (members,):
+            self._screen_work = np.empty(members, dtype=bool)
+        bad = self._screen_work
+        top = state.top_speed_rad_per_s
+        bounds = np.array([self.string_length_m, self.bit_penetration_m,
+                           self.axial_speed_max_m_per_s, self.rotation_speed_max(top),
+                           self.weight_on_bit_max_n, self.kinetic_energy_max(top)])
+        q = np.ascontiguousarray(state.q)
+        v = w = self._no_nodes
+        if self.lateral:
+            (y_columns, y_rows), (z_columns, z_rows) = self._bending
+            with np.errstate(invalid='ignore', over='ignore'):    # a diverged member's
+                v, w = q[:, y_columns] @ y_rows, q[:, z_columns] @ z_rows
+        screen_members(
+            q, np.ascontiguousarray(state.q_rate), np.ascontiguousarray(state.q_acceleration),
+            self._axial_start, self._bit_row, self._top_row, forces.rop_m_per_s,
+            forces.bit_speed_rad_per_s, forces.weight_on_bit_n, forces.torque_on_bit_nm,
+            np.ascontiguousarray(np.broadcast_to(np.asarray(hole, dtype=float), (members,))),
+            bounds, np.ascontiguousarray(np.atleast_1d(self.torque_on_bit_max_nm), dtype=float),
+            bool(self.lateral), v, w, self._lateral_max, bad)
+        return bad
 
     def _bounds(self, top_speed_rad_per_s: float) -> dict[str, float]:
         """Return the speed, force and energy bounds at a top-drive speed, by measured quantity."""
