@@ -120,16 +120,20 @@ class ContactEpisodes:
 
     def update_from_contact(self, time_s: float, in_contact: np.ndarray,
                             radial_force_n: np.ndarray, stiffness_n_per_m: float,
-                            gap_of) -> None:
+                            gap_of, any_touching: bool | None = None) -> None:
         """
         Feed one step from what the contact force saw.
 
         in_contact and the radial force F = k_ip (r - c), (m, n_nodes); ``gap_of(members,
         nodes)`` gives r - c of the pairs (k,) (m) whose episode is open and which no longer
-        touch (called only for those).
+        touch (called only for those). ``any_touching``: whether any flag of in_contact is
+        set, when the caller knows (None: looked up).
         """
+        if any_touching is False and not self._open:      # nothing touches, nothing open
+            self.opened, self.closed = [], []
+            return
         touching = np.asarray(in_contact, dtype=bool)
-        if not self._open and not touching.any():         # nothing touches, nothing open
+        if not self._open and not touching.any():
             self.opened, self.closed = [], []
             return
         force = np.asarray(radial_force_n, dtype=float)
@@ -190,6 +194,7 @@ class LiftOffEpisodes:
         self.count = np.zeros(self.members, dtype=int)
         self.lifted = np.zeros(self.members, dtype=bool)
         self.opened = np.zeros(self.members, dtype=bool)
+        self._any = False                   # an episode in progress or opened at the last update
 
     def prime(self, lifted: np.ndarray) -> None:
         """
@@ -198,18 +203,22 @@ class LiftOffEpisodes:
         Such a bit is an episode in progress, not counted.
         """
         self.lifted = np.array(lifted, dtype=bool)
+        self._any = bool(self.lifted.any() or self.opened.any())
 
     def update(self, lifted: np.ndarray, weight_on_bit_n: np.ndarray) -> None:
         """Feed one step: the bit's lifted flag and f_bit (N, < 0 in compression), (m,)."""
         lifted = np.asarray(lifted, dtype=bool)
-        if not (lifted.any() or self.lifted.any()):       # on the rock before and now
-            if self.opened.any():
-                self.opened = np.zeros(self.members, dtype=bool)
+        if not self._any and not lifted.any():     # on the rock before and now, none opened
+            return
+        if not (lifted.any() or self.lifted.any()):
+            self.opened = np.zeros(self.members, dtype=bool)
+            self._any = False
             return
         reloaded = ~lifted & (-np.asarray(weight_on_bit_n, dtype=float) >= self.release_n)
         self.opened = lifted & ~self.lifted
         self.count += self.opened
         self.lifted = (self.lifted | lifted) & ~reloaded
+        self._any = bool(self.lifted.any() or self.opened.any())
 
 
 def event_rate_per_s(count_at_start, count_at_end, window_s: float) -> np.ndarray:

@@ -42,6 +42,7 @@ import numpy as np
 import scipy.linalg as la
 
 from drill_twin.config.schema import Drawworks as DrawworksConfig
+from drill_twin.dynamics.member_measures import largest_top_speed
 from drill_twin.dynamics.top_drive import NEWMARK_BETA, NEWMARK_GAMMA
 
 
@@ -59,6 +60,7 @@ class TopAxialMotion:
         c = system.blocks['axial'].columns
         self.columns = c
         self.row = system.top_axial_row[c]
+        self._row = np.ascontiguousarray(self.row, dtype=float)
         self.static_hook_load_n = system.model.prestress.hook_load_n
         self.mass = system.mass[c, c]
         self.damping = system.damping[c, c]
@@ -84,8 +86,8 @@ class TopAxialMotion:
 
     def speed_below(self, speed_m_per_s: float) -> bool:
         """Return whether every member's top moves slower than ``speed_m_per_s`` now (m/s)."""
-        velocity = self.simulator.state.q_rate[:, self.columns] @ self.row
-        return bool(np.max(np.abs(velocity)) < speed_m_per_s)
+        return largest_top_speed(np.ascontiguousarray(self.simulator.state.q_rate),
+                                 self.columns.start, self._row) < speed_m_per_s
 
     def now_members(self) -> tuple[np.ndarray, np.ndarray]:
         """(u_top, u_top') of every member at the current state, (m,) each (m, m/s)."""
@@ -245,10 +247,10 @@ class HookBrake:
 
     def hook_load(self, command_n):
         """Return the hook load to apply over the coming step: the command, or the brake's."""
-        if np.ndim(command_n) == 0:
-            changed = self._last_command is None or np.ndim(self._last_command) != 0 \
-                or float(command_n) != self._last_command
-            self._last_command = float(command_n)
+        if type(command_n) is float or np.ndim(command_n) == 0:
+            last, command = self._last_command, float(command_n)
+            changed = not (type(last) is float and last == command)
+            self._last_command = command
         else:
             changed = not np.array_equal(command_n, self._last_command)
             self._last_command = np.copy(command_n)

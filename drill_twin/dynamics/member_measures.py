@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from drill_twin.dynamics.compiled import kernel
 
 
@@ -95,3 +97,22 @@ def screen_members(q, q_rate, q_acceleration, axial_start, bit_row, top_row, rop
         bad[i] = broken
         count += broken
     return count
+
+
+@kernel
+def largest_top_speed(q_rate, start, row):
+    """
+    Return the largest |u_top'| of the members (m/s), nan if one is not finite.
+
+    row (k,): the top's axial row of [Phi] over the columns start ... start + k of q_rate
+    (m, n).
+    """
+    largest = 0.0
+    for i in range(q_rate.shape[0]):
+        speed = 0.0
+        for c in range(row.shape[0]):
+            speed += row[c] * q_rate[i, start + c]
+        if not speed == speed:
+            return np.nan
+        largest = max(largest, abs(speed))
+    return largest

@@ -247,13 +247,18 @@ class NewmarkIntegrator:
             np.ascontiguousarray(self.local_gram), self.bit_rows, self.bit_response,
             np.ascontiguousarray(self.bit_flexibility), self.bit_axial_row,
             forces.bit_axial_index, forces.bit_torsion_index, self.time_step_s,
-            BETA * self.time_step_s ** 2, self.tolerance)
+            BETA * self.time_step_s ** 2, self.tolerance,
+            np.ascontiguousarray(system.mass_driven, dtype=float),
+            np.ascontiguousarray(system.damping_driven, dtype=float),
+            np.ascontiguousarray(self.top_axial_row, dtype=float),
+            float(self.static_hook_load_n))
+        self._hook_scalar = np.empty(1)                  # one hook load for the batch (N)
         without_bit = self._forces_without_bit
         self._forces_arguments = (without_bit.switches, without_bit.strain_arguments,
                                   without_bit.coupling_arguments, without_bit.contact_arguments,
                                   without_bit.imbalance_arguments,
                                   without_bit.rotating_arguments)
-        self._bit_constants = self._law_constants(germ)
+        self._set_law_constants(germ)
         self._work = None
         self._rate = None                 # per member: the contraction rate of its last
         #                                   2-iteration step
@@ -340,7 +345,7 @@ class NewmarkIntegrator:
     @germ.setter
     def germ(self, germ: np.ndarray | None) -> None:
         self._germ = germ
-        self._bit_constants = self._law_constants(germ)
+        self._set_law_constants(germ)
 
     @property
     def law_scales(self) -> np.ndarray | None:
@@ -354,7 +359,7 @@ class NewmarkIntegrator:
             if scales.ndim != 2 or scales.shape[1] != 5 or not np.all(scales > 0):
                 raise ValueError('law scales must be positive, shape (m, 5)')
         self._law_scales = scales
-        self._bit_constants = self._law_constants(self._germ)
+        self._set_law_constants(self._germ)
 
     def adopt(self, source: 'NewmarkIntegrator', members) -> None:
         """Take ``source``'s germs and law scales of ``members`` (an index or a slice)."""
@@ -362,12 +367,15 @@ class NewmarkIntegrator:
         self._germ = None if germ is None else germ[members]
         self.law_scales = None if scales is None else scales[members]
 
-    def _law_constants(self, germ) -> tuple:
+    def _set_law_constants(self, germ) -> None:
+        """Make the step kernel's operands with the law's constants of ``germ`` and the scales."""
         law = self.forces.law
         germs = np.eye(2)[None] if germ is None else np.ascontiguousarray(germ, dtype=float)
         rows = np.ascontiguousarray(law.rows(self._law_scales))
-        return (float(self.static_bit_force[0]), bool(self.forces.physics.bit_rock),
-                rows, np.ascontiguousarray(fade_speeds(rows)), germs, germ is not None)
+        self._bit_constants = (float(self.static_bit_force[0]),
+                               bool(self.forces.physics.bit_rock), rows,
+                               np.ascontiguousarray(fade_speeds(rows)), germs, germ is not None)
+        self._step_operators = self._operators + self._bit_constants
 
     def with_time_step(self, time_step_s: float) -> 'NewmarkIntegrator':
         """Return the same integrator (forces, tolerance, germs, law) with another time step."""
@@ -410,19 +418,23 @@ class NewmarkIntegrator:
         top_acceleration = (top_speed_rad_per_s - state.top_speed_rad_per_s) / dt
         top_angle = state.top_angle_rad + 0.5 * dt * (state.top_speed_rad_per_s
                                                       + top_speed_rad_per_s)
-        load = self._external_load(top_speed_rad_per_s, top_acceleration, hook_load_n)
+        if np.ndim(hook_load_n) == 0:
+            hooks = self._hook_scalar
+            hooks[0] = hook_load_n
+        else:
+            hooks = np.ascontiguousarray(hook_load_n, dtype=float)
         members = state.q.shape[0]
-        load_by_member = np.empty((load.shape[-1], members))        # (n, m), the kernel's
-        load_by_member[:] = load.T if load.ndim == 2 else load[:, None]
         work = self._step_work(members)
         has_hole = state.hole_u is not None
-        bookkeeping = self._bookkeeping()              # restored if the step fails
-        have_rate = self._rate is not None and self._rate.shape == (members,)
+        # Restored if the step fails: the rates (updated in place) and the flags (replaced).
+        rate, active = self._rate, self._active
+        have_rate = rate is not None and rate.shape == (members,)
         if not have_rate:
             self._rate = np.full(members, np.nan)
+        bookkeeping = (None if rate is None else rate.copy(), active)
         due = round((state.time_s + dt) / dt) % VERIFY_EVERY == 0
-        have_active = self._active is not None and self._active[1].shape == (members,)
-        previous_contact, previous_lifted = (self._active if have_active
+        have_active = active is not None and active[1].shape == (members,)
+        previous_contact, previous_lifted = (active if have_active
                                              else (work.no_contact, work.no_lift))
         system = self.system
         final = _FinalEvaluation(system.n_dofs, system.size, system.n_nodes, members)
@@ -434,16 +446,16 @@ class NewmarkIntegrator:
         self.forces.strain_operators.set_top_angle(top_angle)   # printed_absolute's
         if self.forces.imbalance is not None:          # the angle its force turns with
             self.forces.imbalance.set_top_angle(top_angle)
-        iterations, robust, count = compiled.step(
+        iterations, robust, count, touching = compiled.step(
             (np.ascontiguousarray(state.q), np.ascontiguousarray(state.q_rate),
              np.ascontiguousarray(state.q_acceleration),
              state.hole_u if has_hole else work.touch, has_hole),
-            (float(top_speed_rad_per_s), float(top_acceleration), load_by_member,
+            (float(top_speed_rad_per_s), float(top_acceleration), hooks,
              self.max_iterations),
             (have_rate, have_active, self._rate, due, previous_contact, previous_lifted),
-            self._forces_arguments, self._operators + self._bit_constants, work.arrays,
-            final.arrays, (q, q_rate, q_acceleration, hole, finite, converged))
-        evaluation = final.evaluation()
+            self._forces_arguments, self._step_operators, work.arrays, final.arrays,
+            (q, q_rate, q_acceleration, hole, finite, converged))
+        evaluation = final.evaluation(touching)
         self._active = (final.contact.copy(), final.bit_lifted.copy())
         error = work.error.copy()
         bit_ok = work.bit_ok
@@ -485,6 +497,7 @@ class NewmarkIntegrator:
                            work.y, work.modal, work.product, work.responses, work.touch,
                            work.hole, work.error, work.previous_error, work.active,
                            work.bit_ok, work.scratch, work.flexibilities, work.on_wall,
+                           work.load,
                            *forces.kinematics, forces.strain, forces.linear,
                            forces.stress, forces.coupling, forces.force_t, forces.radial,
                            forces.in_contact, forces.tangent,
@@ -493,11 +506,6 @@ class NewmarkIntegrator:
             work.no_lift = np.zeros(members, dtype=bool)
             self._work = work
         return work
-
-    def _bookkeeping(self):
-        copy = (lambda x: None if x is None else
-                (tuple(v.copy() for v in x) if isinstance(x, tuple) else x.copy()))
-        return copy(self._rate), copy(self._active)
 
     def _restore(self, bookkeeping, members=None) -> None:
         """Put back the bookkeeping of ``members`` (a mask; None: all) as it was."""
@@ -592,10 +600,11 @@ class _FinalEvaluation:
                        self.bit_rop, self.bit_omega, self.bit_force, self.bit_torque,
                        self.bit_lifted, self.bit_jacobian, self.bit_solved)
 
-    def evaluation(self) -> ForceEvaluation:
+    def evaluation(self, touching: bool) -> ForceEvaluation:
+        """Return the evaluation; ``touching``: whether any node touches the wall."""
         return ForceEvaluation(
             full=self.full.T, modal=self.modal.T, weight_on_bit_n=self.bit_force,
             torque_on_bit_nm=self.bit_torque, rop_m_per_s=self.bit_rop,
             bit_speed_rad_per_s=self.bit_omega, lifted=self.bit_lifted,
             bit_jacobian=self.bit_jacobian, contact=ContactForces(self.radial, self.contact),
-            contact_tangent=self.tangent if self.contact.any() else None)
+            contact_tangent=self.tangent if touching else None)

@@ -38,6 +38,7 @@ class StepWork:
     Work arrays of a step for m members (n reduced coordinates), allocated once.
 
     d_pred, v_pred, a, d, v, residual, y: (n, m); modal: (n, m) (Phi^T f of the iterate);
+    load: (n, m) the modal load of the driven rotation and the hook (g of the step);
     touch, hole: (m,); per-member state of the iteration: error, previous_error (m,),
     active, bit_ok (m,) bools; the bit of the iteration (rop, omega, force, torque, lifted,
     jacobian (m, 2, 2), solved) and the product buffer (n, m); responses (m, n, 2): S^-1 B of
@@ -52,6 +53,7 @@ class StepWork:
         self.d, self.v = np.empty(shape), np.empty(shape)
         self.residual, self.y = np.empty(shape), np.empty(shape)
         self.modal, self.product = np.empty(shape), np.empty(shape)
+        self.load = np.empty(shape)
         self.touch, self.hole = np.empty(members), np.empty(members)
         self.error, self.previous_error = np.empty(members), np.empty(members)
         self.active = np.empty(members, dtype=np.bool_)
@@ -60,6 +62,24 @@ class StepWork:
         self.scratch = np.empty((6, members))
         self.flexibilities = np.empty((members, 2, 2))
         self.on_wall = np.empty(members, dtype=np.bool_)
+
+
+@kernel
+def external_load(top_speed, top_acceleration, hooks, mass_driven, damping_driven,
+                  top_axial_row, static_hook, load):
+    """
+    Set load (n, m) = g(t + dt): the driven rotation's and the hook's modal load.
+
+    -Phi^T (M psi theta_top'' + C psi theta_top') - Phi^T e_top (H - H_S), hooks (1 or m,)
+    the hook loads H (N), one for the batch or one per member.
+    """
+    n, members = load.shape
+    last = hooks.shape[0] - 1
+    for j in range(n):
+        driven = -mass_driven[j] * top_acceleration - damping_driven[j] * top_speed
+        row = top_axial_row[j]
+        for i in range(members):
+            load[j, i] = driven - (hooks[min(i, last)] - static_hook) * row
 
 
 @kernel
@@ -489,7 +509,7 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out):
     max_iterations, then finish. Arguments are tuples:
 
     state: (q, q_rate, q_acceleration (m, n) members first, hole (m,), has_hole);
-    step_inputs: (top_speed, top_acceleration, load (n, m), max_iterations);
+    step_inputs: (top_speed, top_acceleration, hook loads (1 or m,) (N), max_iterations);
     bookkeeping: (have_rate, have_active, rate, due (this step verifies: VERIFY_EVERY),
     previous_contact, previous_lifted);
     forces: the arguments of forces.string_forces before the kinematics (the last two: the
@@ -497,36 +517,39 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out):
     rotating_damping.RotatingDampingOperators.arguments);
     operators: (shapes (4,), shapes_t (4,), ranges, bit_node, n_nodes, mass, mass is I,
     damping blocks (4,), stiffness, stiffness diagonal, S0^-1 blocks (4,), their row groups
-    (4, 2), local directions, S0^-1 U, U^T S0^-1 U,
-    B^T, S0^-1 B, B^T S0^-1 B, bit axial row, bit axial and torsion DOF, dt, beta dt^2
-    (the contact's), tolerance, static force on bit, bit_rock, the law's constants (m or 1,
-    8; BitRockLaw.rows: e, r and 1/k the same in every row), their fade speeds (m or 1,),
-    germs, random);
+    (4, 2), local directions, S0^-1 U, U^T S0^-1 U, B^T, S0^-1 B, B^T S0^-1 B, bit axial row,
+    bit axial and torsion DOF, dt, beta dt^2 (the contact's), tolerance, Phi^T (M + M_f) psi,
+    Phi^T (C + C_f) psi and the top's axial row of Phi (n,) each, the prestressed hook load
+    (N), static force on bit, bit_rock, the law's constants (m or 1, 8; BitRockLaw.rows: e, r
+    and 1/k the same in every row), their fade speeds (m or 1,), germs, random);
     work: StepWork arrays and the forces' Workspace arrays (the last: the (w, theta_y)
     accelerations, of which only the imbalance's node row is computed, when it is on);
     final: _FinalEvaluation.arrays;
     out: (q, q_rate, q_acceleration, hole, finite, converged) of the new state.
 
     Returns (iterations, iterations in which a member needed the bracketed bit solve,
-    members converged).
+    members converged, whether any node of the final evaluation touches the wall).
     """
     q, q_rate, q_acceleration, hole_in, has_hole = state
-    top_speed, top_acceleration, load, max_iterations = step_inputs
+    top_speed, top_acceleration, hooks, max_iterations = step_inputs
     have_rate, have_active, rate, due, previous_contact, previous_lifted = bookkeeping
     (switches, strain_arguments, coupling_arguments, contact_arguments, imbalance,
      rotating) = forces
     (shapes, shapes_t, ranges, bit_node, n_nodes, mass, mass_is_identity, damping, stiffness,
      stiffness_diagonal, effective_inverse, groups, local_directions, local_response, local_gram,
      bit_rows, bit_response, bit_flexibility, bit_axial_row, axial_index, torsion_index, dt,
-     dt2, tolerance, static_force, bit_rock, law, fade_speed, germ, random) = operators
+     dt2, tolerance, mass_driven, damping_driven, top_axial_row, static_hook, static_force,
+     bit_rock, law, fade_speed, germ, random) = operators
     (d_pred, v_pred, a, d, v, residual, y, modal, product, responses, touch, hole, error,
-     previous_error, active, bit_ok, scratch, flexibilities, on_wall, displacement_t,
+     previous_error, active, bit_ok, scratch, flexibilities, on_wall, load, displacement_t,
      theta_x_rate_t, theta_x_acceleration_t, bending_y_rate_t, bending_y_acceleration_t,
      bending_z_rate_t, strain, linear, stress,
      coupling, force_t, radial, in_contact, tangent, bending_z_acceleration_t) = work
     (final_full, final_modal, final_radial, final_contact, final_tangent, bit_rop, bit_omega,
      bit_force, bit_torque, bit_lifted, bit_jacobian, bit_solved) = final
     q_out, q_rate_out, q_acceleration_out, hole_out, finite, converged = out
+    external_load(top_speed, top_acceleration, hooks, mass_driven, damping_driven,
+                  top_axial_row, static_hook, load)
     begin(q, q_rate, q_acceleration, hole_in, has_hole, dt, bit_axial_row, law[0, 7] == 0.0,
           d_pred, v_pred, a, touch, hole, error, active, bit_ok)
     cd, cv = BETA * dt * dt, GAMMA * dt
@@ -564,4 +587,8 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out):
                    law[0, 7], static_force, bit_rows, axial_index, torsion_index, final_full,
                    final_modal, error, bit_ok, tolerance, q_out, q_rate_out,
                    q_acceleration_out, hole_out, finite, converged)
-    return iterations, robust, count
+    touching = False
+    for i in range(final_contact.shape[0]):
+        for node in range(final_contact.shape[1]):
+            touching = touching or final_contact[i, node]
+    return iterations, robust, count, touching

@@ -390,7 +390,8 @@ class Simulator:
         self.contact_episodes.update_from_contact(
             state.time_s, last.contact.in_contact, last.contact.radial_force_n,
             float(system.model.config.borehole.contact_stiffness_n_per_m),
-            lambda members, nodes: node_gap_m(system, state.q, members, nodes))
+            lambda members, nodes: node_gap_m(system, state.q, members, nodes),
+            any_touching=last.contact_tangent is not None)     # None: nothing touches
         self.lift_off_episodes.update(last.lifted, last.weight_on_bit_n)
 
     def _retry(self, new_state: BatchState, result: StepResult, start_speed: float,
