@@ -454,7 +454,7 @@ class NewmarkIntegrator:
              self.max_iterations),
             (have_rate, have_active, self._rate, due, previous_contact, previous_lifted),
             self._forces_arguments, self._step_operators, work.arrays, final.arrays,
-            (q, q_rate, q_acceleration, hole, finite, converged))
+            (q, q_rate, q_acceleration, hole, finite, converged), work.compact)
         evaluation = final.evaluation(touching)
         self._active = (final.contact.copy(), final.bit_lifted.copy())
         error = work.error.copy()
@@ -502,6 +502,8 @@ class NewmarkIntegrator:
                            forces.stress, forces.coupling, forces.force_t, forces.radial,
                            forces.in_contact, forces.tangent,
                            forces.bending_z_acceleration_t)
+            work.make_compact(work.arrays + _FinalEvaluation(
+                self.system.n_dofs, self.system.size, self.system.n_nodes, members).arrays)
             work.no_contact = np.zeros((members, self.system.n_nodes), dtype=bool)
             work.no_lift = np.zeros(members, dtype=bool)
             self._work = work

@@ -62,6 +62,21 @@ class StepWork:
         self.scratch = np.empty((6, members))
         self.flexibilities = np.empty((members, 2, 2))
         self.on_wall = np.empty(members, dtype=np.bool_)
+        self.compact = None
+
+    def make_compact(self, arrays) -> None:
+        """
+        Make the buffers of the compacted iterations (step's ``compact``) for ``arrays``.
+
+        ``arrays``: the step's work and final arrays; the buffers hold every float and every
+        flag array of the batch once, plus the law's operands per member and the
+        members' indices.
+        """
+        members = self.members
+        floats = sum(x.size for x in arrays if x.dtype == np.float64) + 16 * members
+        flags = sum(x.size for x in arrays if x.dtype == np.bool_)
+        self.compact = (np.empty(floats), np.empty(flags, dtype=np.bool_),
+                        np.empty(members, dtype=np.int64))
 
 
 @kernel
@@ -501,7 +516,7 @@ def finish(d_pred, v_pred, a, cd, cv, bit_axial_row, hole, bit_force, bit_torque
 
 
 @kernel
-def step(state, step_inputs, bookkeeping, forces, operators, work, final, out):
+def step(state, step_inputs, bookkeeping, forces, operators, work, final, out, compact):
     """
     One Newmark step of m members.
 
@@ -525,7 +540,11 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out):
     work: StepWork arrays and the forces' Workspace arrays (the last: the (w, theta_y)
     accelerations, of which only the imbalance's node row is computed, when it is on);
     final: _FinalEvaluation.arrays;
-    out: (q, q_rate, q_acceleration, hole, finite, converged) of the new state.
+    out: (q, q_rate, q_acceleration, hole, finite, converged) of the new state;
+    compact: (floats, flags, index) the work buffers of the iterations after the first
+    (:class:`StepWork`), which run on the members still iterating only, gathered into arrays
+    of their own (a member frozen after the first iteration costs nothing more: with wall
+    contact, one member's Newton iterations used to cost the whole batch's).
 
     Returns (iterations, iterations in which a member needed the bracketed bit solve,
     members converged, whether any node of the final evaluation touches the wall).
@@ -554,7 +573,82 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out):
           d_pred, v_pred, a, touch, hole, error, active, bit_ok)
     cd, cv = BETA * dt * dt, GAMMA * dt
     iterations, robust = 0, 0
+    # The whole batch's arrays: a member frozen after the first iteration is left there, and
+    # the later iterations run on the members still iterating, gathered (compacted, below).
+    full = (a, error, previous_error, active, bit_ok, rate, final_full, final_modal,
+            final_radial, final_contact, final_tangent, bit_rop, bit_omega, bit_force,
+            bit_torque, bit_lifted, bit_jacobian, bit_solved)
+    floats, flags, index = compact
+    members = a.shape[1]
+    predictor = (d_pred, v_pred)
+    compacted = 0
+    still = members
     for iteration in range(1, max_iterations + 1):
+        if iteration > 1 and still < members and compacted == 0:
+            compacted = still
+            k = 0
+            for i in range(members):
+                if active[i]:
+                    index[k] = i
+                    k += 1
+            at, flag_at = 0, 0
+            a, at = _narrow(floats, at, a, index, compacted, True)
+            d_pred, at = _narrow(floats, at, d_pred, index, compacted, True)
+            v_pred, at = _narrow(floats, at, v_pred, index, compacted, True)
+            load, at = _narrow(floats, at, load, index, compacted, True)
+            d, at = _narrow(floats, at, d, index, compacted, False)
+            v, at = _narrow(floats, at, v, index, compacted, False)
+            residual, at = _narrow(floats, at, residual, index, compacted, False)
+            y, at = _narrow(floats, at, y, index, compacted, False)
+            modal, at = _narrow(floats, at, modal, index, compacted, False)
+            product, at = _narrow(floats, at, product, index, compacted, False)
+            scratch, at = _narrow(floats, at, scratch, index, compacted, False)
+            displacement_t, at = _narrow(floats, at, displacement_t, index, compacted, False)
+            theta_x_rate_t, at = _narrow(floats, at, theta_x_rate_t, index, compacted, False)
+            theta_x_acceleration_t, at = _narrow(floats, at, theta_x_acceleration_t, index,
+                                                 compacted, False)
+            bending_y_rate_t, at = _narrow(floats, at, bending_y_rate_t, index, compacted,
+                                           False)
+            bending_y_acceleration_t, at = _narrow(floats, at, bending_y_acceleration_t, index,
+                                                   compacted, False)
+            bending_z_rate_t, at = _narrow(floats, at, bending_z_rate_t, index, compacted,
+                                           False)
+            bending_z_acceleration_t, at = _narrow(floats, at, bending_z_acceleration_t, index,
+                                                   compacted, False)
+            strain, at = _narrow(floats, at, strain, index, compacted, False)
+            linear, at = _narrow(floats, at, linear, index, compacted, False)
+            stress, at = _narrow(floats, at, stress, index, compacted, False)
+            coupling, at = _narrow(floats, at, coupling, index, compacted, False)
+            force_t, at = _narrow(floats, at, force_t, index, compacted, False)
+            final_full, at = _narrow(floats, at, final_full, index, compacted, True)
+            final_modal, at = _narrow(floats, at, final_modal, index, compacted, True)
+            touch, at = _take(floats, at, touch, index, compacted, True)
+            error, at = _take(floats, at, error, index, compacted, True)
+            previous_error, at = _take(floats, at, previous_error, index, compacted, True)
+            rate, at = _take(floats, at, rate, index, compacted, True)
+            bit_rop, at = _take(floats, at, bit_rop, index, compacted, True)
+            bit_omega, at = _take(floats, at, bit_omega, index, compacted, True)
+            bit_force, at = _take(floats, at, bit_force, index, compacted, True)
+            bit_torque, at = _take(floats, at, bit_torque, index, compacted, True)
+            fade_speed, at = _take(floats, at, fade_speed, index, compacted,
+                                   fade_speed.shape[0] > 1)
+            radial, at = _take2(floats, at, radial, index, compacted, False)
+            final_radial, at = _take2(floats, at, final_radial, index, compacted, True)
+            law, at = _take2(floats, at, law, index, compacted, law.shape[0] > 1)
+            flexibilities, at = _take3(floats, at, flexibilities, index, compacted, False)
+            responses, at = _take3(floats, at, responses, index, compacted, False)
+            bit_jacobian, at = _take3(floats, at, bit_jacobian, index, compacted, True)
+            germ, at = _take3(floats, at, germ, index, compacted, germ.shape[0] > 1)
+            tangent, at = _take4(floats, at, tangent, index, compacted, False)
+            final_tangent, at = _take4(floats, at, final_tangent, index, compacted, True)
+            active, flag_at = _take(flags, flag_at, active, index, compacted, True)
+            bit_ok, flag_at = _take(flags, flag_at, bit_ok, index, compacted, True)
+            on_wall, flag_at = _take(flags, flag_at, on_wall, index, compacted, False)
+            bit_lifted, flag_at = _take(flags, flag_at, bit_lifted, index, compacted, True)
+            bit_solved, flag_at = _take(flags, flag_at, bit_solved, index, compacted, True)
+            in_contact, flag_at = _take2(flags, flag_at, in_contact, index, compacted, False)
+            final_contact, flag_at = _take2(flags, flag_at, final_contact, index, compacted,
+                                            True)
         iterations = iteration
         fields(a, d_pred, v_pred, cd, cv, top_speed, top_acceleration, shapes[0], shapes[1],
                shapes[2], shapes[3], ranges, d, v, displacement_t, theta_x_rate_t,
@@ -583,6 +677,32 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out):
         robust += used
         if still == 0:
             break
+    if compacted > 0:                            # back into the whole batch
+        (a_all, error_all, previous_error_all, active_all, bit_ok_all, rate_all,
+         final_full_all, final_modal_all, final_radial_all, final_contact_all,
+         final_tangent_all, bit_rop_all, bit_omega_all, bit_force_all, bit_torque_all,
+         bit_lifted_all, bit_jacobian_all, bit_solved_all) = full
+        for c in range(compacted):
+            i = index[c]
+            for j in range(a.shape[0]):
+                a_all[j, i] = a[j, c]
+            for j in range(final_full.shape[0]):
+                final_full_all[j, i] = final_full[j, c]
+            for j in range(final_modal.shape[0]):
+                final_modal_all[j, i] = final_modal[j, c]
+            error_all[i], previous_error_all[i] = error[c], previous_error[c]
+            active_all[i], bit_ok_all[i], rate_all[i] = active[c], bit_ok[c], rate[c]
+            final_radial_all[i] = final_radial[c]
+            final_contact_all[i] = final_contact[c]
+            final_tangent_all[i] = final_tangent[c]
+            bit_rop_all[i], bit_omega_all[i] = bit_rop[c], bit_omega[c]
+            bit_force_all[i], bit_torque_all[i] = bit_force[c], bit_torque[c]
+            bit_lifted_all[i], bit_solved_all[i] = bit_lifted[c], bit_solved[c]
+            bit_jacobian_all[i] = bit_jacobian[c]
+        a, error, bit_ok = a_all, error_all, bit_ok_all
+        d_pred, v_pred = predictor
+        bit_force, bit_torque = bit_force_all, bit_torque_all
+        final_full, final_modal, final_contact = final_full_all, final_modal_all, final_contact_all
     count = finish(d_pred, v_pred, a, cd, cv, bit_axial_row, hole, bit_force, bit_torque,
                    law[0, 7], static_force, bit_rows, axial_index, torsion_index, final_full,
                    final_modal, error, bit_ok, tolerance, q_out, q_rate_out,
@@ -592,3 +712,73 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out):
         for node in range(final_contact.shape[1]):
             touching = touching or final_contact[i, node]
     return iterations, robust, count, touching
+
+
+@inline
+def _narrow(floats, at, full, index, k, gather):
+    """
+    Return (the compact (rows, k) array of a members-last (rows, m) one, the next offset).
+
+    Carved out of ``floats`` at ``at`` (the whole array's size is reserved, so every k gets
+    the same layout); with ``gather`` it holds the columns ``index[:k]`` of ``full``.
+    """
+    rows = full.shape[0]
+    view = floats[at:at + rows * k].reshape((rows, k))
+    if gather:
+        for j in range(rows):
+            for c in range(k):
+                view[j, c] = full[j, index[c]]
+    return view, at + full.size
+
+
+@inline
+def _take(buffer, at, full, index, k, gather):
+    """
+    Return what :func:`_narrow` does, for a members-first (m,) array.
+
+    A (1,) array (one value shared by the batch, gather False) stays as it is.
+    """
+    if full.shape[0] == 1 and not gather:
+        return full, at
+    view = buffer[at:at + k]
+    if gather:
+        for c in range(k):
+            view[c] = full[index[c]]
+    return view, at + full.size
+
+
+@inline
+def _take2(buffer, at, full, index, k, gather):
+    """Return what :func:`_take` does, for a (m, p) array (a (1, p) one stays as it is)."""
+    if full.shape[0] == 1 and not gather:
+        return full, at
+    p = full.shape[1]
+    view = buffer[at:at + k * p].reshape((k, p))
+    if gather:
+        for c in range(k):
+            view[c] = full[index[c]]
+    return view, at + full.size
+
+
+@inline
+def _take3(buffer, at, full, index, k, gather):
+    """Return what :func:`_take` does, for a (m, p, r) array."""
+    if full.shape[0] == 1 and not gather:
+        return full, at
+    p, r = full.shape[1], full.shape[2]
+    view = buffer[at:at + k * p * r].reshape((k, p, r))
+    if gather:
+        for c in range(k):
+            view[c] = full[index[c]]
+    return view, at + full.size
+
+
+@inline
+def _take4(buffer, at, full, index, k, gather):
+    """Return what :func:`_take` does, for a (m, p, r, s) array."""
+    p, r, t = full.shape[1], full.shape[2], full.shape[3]
+    view = buffer[at:at + k * p * r * t].reshape((k, p, r, t))
+    if gather:
+        for c in range(k):
+            view[c] = full[index[c]]
+    return view, at + full.size
