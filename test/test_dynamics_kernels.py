@@ -383,3 +383,25 @@ def test_members_verify_on_the_model_clocks_schedule(default_config):
     # Steps 1 and 2: no rate yet, then a rate whose estimated remaining error is too large.
     assert verified[:1] == [1] and verified[1:] in ([8, VERIFY_EVERY, 2 * VERIFY_EVERY],
                                                     [2, 8, VERIFY_EVERY, 2 * VERIFY_EVERY])
+
+
+def test_a_large_batch_verifies_in_groups_spread_over_the_clock(default_config):
+    """
+    Members verify in groups of VERIFY_GROUP, VERIFY_SPACING steps apart on the model's clock.
+
+    17 members are three groups: second iterations on the steps n with n + 3 g a multiple of
+    25 (g = 0, 1, 2), and on no other step once the start is past (a whole batch verifying at
+    once made the longest twin ticks).
+    """
+    from drill_twin.dynamics.newmark import VERIFY_EVERY
+    from drill_twin.dynamics.newmark_kernel import VERIFY_GROUP, VERIFY_SPACING
+    from drill_twin.dynamics.simulator import Simulator
+    members = 2 * VERIFY_GROUP + 1
+    germs = np.eye(2) + 0.01 * np.random.default_rng(4).standard_normal((members, 2, 2))
+    batch = Simulator(default_config, members=members, germs=germs)
+    verified = [step for step in range(1, 2 * VERIFY_EVERY + 1)
+                if batch.step().iterations > 1]
+    expected = sorted(n for n in range(3, 2 * VERIFY_EVERY + 1) for g in range(3)
+                      if (n + VERIFY_SPACING * g) % VERIFY_EVERY == 0)
+    assert expected == [19, 22, 25, 44, 47, 50]
+    assert [n for n in verified if n > 2] == expected

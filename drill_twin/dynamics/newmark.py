@@ -33,12 +33,13 @@ scipy's implicit solvers do, each member keeps the contraction rate rho = |incre
 |increment_1| of its last step that ran two iterations and accepts its first iterate when
 rho / (1 - rho) |increment_1| (the estimated remaining error) is below the tolerance. It
 verifies with a second iteration whenever its set of nodes touching the wall or its bit's
-lift-off state changed, and on every step that ends at a multiple of VERIFY_EVERY time steps
-of the model's clock, to refresh rho. That schedule is the clock's, not counted from each
-member's last verification: members that verified out of turn (a contact change) do not fall
-due alone later, each costing the whole batch a second iteration (64 members: 8 % of steps
-with two iterations on per-member schedules, 4 % on the clock's), and two runs of the same
-members take the same decisions whenever they were started.
+lift-off state changed, and once every VERIFY_EVERY steps of the model's clock to refresh rho,
+in groups of VERIFY_GROUP members VERIFY_SPACING steps apart. The schedule is the clock's, not
+counted from each member's last verification, so two runs of the same members take the same
+decisions whenever they were started; and since the later iterations run on the members
+still iterating only, a step's extra cost is that of a group (a 64-member batch verifying
+all at once, as it did, cost a second full iteration on 4 % of its steps: the longest twin
+ticks).
 
 Members are independent: every decision (convergence, acceptance, verification) is taken per
 member and converged members are frozen while others iterate, so a member's trajectory does
@@ -67,7 +68,8 @@ from drill_twin.dynamics import newmark_kernel as compiled
 from drill_twin.dynamics.bit_rock import fade_speeds
 from drill_twin.dynamics.contact import ContactForces
 from drill_twin.dynamics.forces import ForceEvaluation, Kinematics, NonlinearForces
-from drill_twin.dynamics.newmark_kernel import BETA, GAMMA, VELOCITY_SCALE, VERIFY_EVERY  # noqa
+from drill_twin.dynamics.newmark_kernel import (BETA, GAMMA, VELOCITY_SCALE,  # noqa
+                                                VERIFY_EVERY)
 
 ON_BOTTOM_TOLERANCE_M = 1e-6
 """The bit counts as on bottom when it is within this of the hole bottom (m)."""
@@ -432,7 +434,7 @@ class NewmarkIntegrator:
         if not have_rate:
             self._rate = np.full(members, np.nan)
         bookkeeping = (None if rate is None else rate.copy(), active)
-        due = round((state.time_s + dt) / dt) % VERIFY_EVERY == 0
+        clock = round((state.time_s + dt) / dt)         # the step's number on the model clock
         have_active = active is not None and active[1].shape == (members,)
         previous_contact, previous_lifted = (active if have_active
                                              else (work.no_contact, work.no_lift))
@@ -452,7 +454,7 @@ class NewmarkIntegrator:
              state.hole_u if has_hole else work.touch, has_hole),
             (float(top_speed_rad_per_s), float(top_acceleration), hooks,
              self.max_iterations),
-            (have_rate, have_active, self._rate, due, previous_contact, previous_lifted),
+            (have_rate, have_active, self._rate, clock, previous_contact, previous_lifted),
             self._forces_arguments, self._step_operators, work.arrays, final.arrays,
             (q, q_rate, q_acceleration, hole, finite, converged), work.compact)
         evaluation = final.evaluation(touching)
@@ -497,7 +499,7 @@ class NewmarkIntegrator:
                            work.y, work.modal, work.product, work.responses, work.touch,
                            work.hole, work.error, work.previous_error, work.active,
                            work.bit_ok, work.scratch, work.flexibilities, work.on_wall,
-                           work.load,
+                           work.load, work.due,
                            *forces.kinematics, forces.strain, forces.linear,
                            forces.stress, forces.coupling, forces.force_t, forces.radial,
                            forces.in_contact, forces.tangent,

@@ -29,8 +29,15 @@ GAMMA = 0.5
 VELOCITY_SCALE = 1e-9
 """Added to the velocity norm in the convergence test (modal units, sqrt(kg) m/s)."""
 VERIFY_EVERY = 25
-"""Every step whose end is a multiple of this many time steps on the model's clock runs at
-least two iterations for every member, to measure the contraction rate."""
+"""Every member runs at least two iterations once in this many steps of the model's clock, to
+measure its contraction rate: member i on the steps n with (n + VERIFY_SPACING g) a multiple
+of VERIFY_EVERY, g = i // VERIFY_GROUP its group."""
+VERIFY_GROUP = 8
+"""Members that verify on the same step (a batch of 64 verifies in 8 groups, not all at once:
+the later iterations run on the members still iterating only, so a step's extra cost is a
+group's, not the batch's)."""
+VERIFY_SPACING = 3
+"""Steps between the verifications of consecutive groups (8 groups fit in VERIFY_EVERY)."""
 
 
 class StepWork:
@@ -38,7 +45,8 @@ class StepWork:
     Work arrays of a step for m members (n reduced coordinates), allocated once.
 
     d_pred, v_pred, a, d, v, residual, y: (n, m); modal: (n, m) (Phi^T f of the iterate);
-    load: (n, m) the modal load of the driven rotation and the hook (g of the step);
+    load: (n, m) the modal load of the driven rotation and the hook (g of the step); due (m,):
+    the members whose first iterate is verified this step (VERIFY_EVERY);
     touch, hole: (m,); per-member state of the iteration: error, previous_error (m,),
     active, bit_ok (m,) bools; the bit of the iteration (rop, omega, force, torque, lifted,
     jacobian (m, 2, 2), solved) and the product buffer (n, m); responses (m, n, 2): S^-1 B of
@@ -54,6 +62,7 @@ class StepWork:
         self.residual, self.y = np.empty(shape), np.empty(shape)
         self.modal, self.product = np.empty(shape), np.empty(shape)
         self.load = np.empty(shape)
+        self.due = np.empty(members, dtype=np.bool_)
         self.touch, self.hole = np.empty(members), np.empty(members)
         self.error, self.previous_error = np.empty(members), np.empty(members)
         self.active = np.empty(members, dtype=np.bool_)
@@ -301,9 +310,9 @@ def update(iteration, force_t, radial, in_contact, tangent, touching, theta_x_ra
         if was_active:
             error[i] = new_error
         now = was_active and np.isfinite(error[i]) and bit_ok[i]
-        done = now and error[i] <= tolerance and not (iteration == 1 and due)
+        done = now and error[i] <= tolerance and not (iteration == 1 and due[i])
         if iteration == 1 and now and have_rate:
-            accept = np.isfinite(rate[i]) and not due
+            accept = np.isfinite(rate[i]) and not due[i]
             if accept and have_active:
                 accept = previous_lifted[i] == bit_lifted[i]
                 for node in range(n_nodes):
@@ -315,7 +324,7 @@ def update(iteration, force_t, radial, in_contact, tangent, touching, theta_x_ra
             measured = error[i] / previous_error[i]
             if measured < 1.0:
                 rate[i] = measured
-            elif due:
+            elif due[i]:
                 rate[i] = np.nan                 # not contracting: verify until it does
         active[i] = now and not done
         still += active[i]
@@ -525,8 +534,8 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out, c
 
     state: (q, q_rate, q_acceleration (m, n) members first, hole (m,), has_hole);
     step_inputs: (top_speed, top_acceleration, hook loads (1 or m,) (N), max_iterations);
-    bookkeeping: (have_rate, have_active, rate, due (this step verifies: VERIFY_EVERY),
-    previous_contact, previous_lifted);
+    bookkeeping: (have_rate, have_active, rate, the step's number on the model's clock (its
+    end over dt: which members verify, VERIFY_EVERY), previous_contact, previous_lifted);
     forces: the arguments of forces.string_forces before the kinematics (the last two: the
     imbalance's, excitation.ImbalanceForce.arguments, and the rotating damping's,
     rotating_damping.RotatingDampingOperators.arguments);
@@ -551,7 +560,7 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out, c
     """
     q, q_rate, q_acceleration, hole_in, has_hole = state
     top_speed, top_acceleration, hooks, max_iterations = step_inputs
-    have_rate, have_active, rate, due, previous_contact, previous_lifted = bookkeeping
+    have_rate, have_active, rate, clock, previous_contact, previous_lifted = bookkeeping
     (switches, strain_arguments, coupling_arguments, contact_arguments, imbalance,
      rotating) = forces
     (shapes, shapes_t, ranges, bit_node, n_nodes, mass, mass_is_identity, damping, stiffness,
@@ -560,15 +569,17 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out, c
      dt2, tolerance, mass_driven, damping_driven, top_axial_row, static_hook, static_force,
      bit_rock, law, fade_speed, germ, random) = operators
     (d_pred, v_pred, a, d, v, residual, y, modal, product, responses, touch, hole, error,
-     previous_error, active, bit_ok, scratch, flexibilities, on_wall, load, displacement_t,
-     theta_x_rate_t, theta_x_acceleration_t, bending_y_rate_t, bending_y_acceleration_t,
-     bending_z_rate_t, strain, linear, stress,
-     coupling, force_t, radial, in_contact, tangent, bending_z_acceleration_t) = work
+     previous_error, active, bit_ok, scratch, flexibilities, on_wall, load, due,
+     displacement_t, theta_x_rate_t, theta_x_acceleration_t, bending_y_rate_t,
+     bending_y_acceleration_t, bending_z_rate_t, strain, linear, stress, coupling, force_t,
+     radial, in_contact, tangent, bending_z_acceleration_t) = work
     (final_full, final_modal, final_radial, final_contact, final_tangent, bit_rop, bit_omega,
      bit_force, bit_torque, bit_lifted, bit_jacobian, bit_solved) = final
     q_out, q_rate_out, q_acceleration_out, hole_out, finite, converged = out
     external_load(top_speed, top_acceleration, hooks, mass_driven, damping_driven,
                   top_axial_row, static_hook, load)
+    for i in range(due.shape[0]):
+        due[i] = (clock + VERIFY_SPACING * (i // VERIFY_GROUP)) % VERIFY_EVERY == 0
     begin(q, q_rate, q_acceleration, hole_in, has_hole, dt, bit_axial_row, law[0, 7] == 0.0,
           d_pred, v_pred, a, touch, hole, error, active, bit_ok)
     cd, cv = BETA * dt * dt, GAMMA * dt
@@ -646,6 +657,7 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out, c
             on_wall, flag_at = _take(flags, flag_at, on_wall, index, compacted, False)
             bit_lifted, flag_at = _take(flags, flag_at, bit_lifted, index, compacted, True)
             bit_solved, flag_at = _take(flags, flag_at, bit_solved, index, compacted, True)
+            due, flag_at = _take(flags, flag_at, due, index, compacted, True)
             in_contact, flag_at = _take2(flags, flag_at, in_contact, index, compacted, False)
             final_contact, flag_at = _take2(flags, flag_at, final_contact, index, compacted,
                                             True)
