@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from drill_twin.dynamics.compiled import kernel
+from drill_twin.dynamics.compiled import inline, kernel
 
 
 @kernel
@@ -26,21 +26,9 @@ def measure_members(q, q_rate, q_acceleration, axial_start, bit_row, top_row, fi
     bit_row, top_row: the axial rows of [Phi] at the bit and at the top over the axial block,
     whose columns start at ``axial_start``. A member whose state is not finite gets zeros.
     """
-    members, n = q.shape
-    size = bit_row.shape[0]
-    for i in range(members):
-        nan_test = 0.0                      # x - x is 0 for every finite x, nan otherwise
-        energy = 0.0
-        for j in range(n):
-            rate = q_rate[i, j]
-            nan_test += (q[i, j] - q[i, j]) + (rate - rate) + (q_acceleration[i, j]
-                                                               - q_acceleration[i, j])
-            energy += rate * rate
-        depth = 0.0
-        speed = 0.0
-        for c in range(size):
-            depth += bit_row[c] * q[i, axial_start + c]
-            speed += top_row[c] * q_rate[i, axial_start + c]
+    for i in range(q.shape[0]):
+        nan_test, energy, depth, speed = _member(q, q_rate, q_acceleration, i, axial_start,
+                                                 bit_row, top_row)
         ok = nan_test == 0.0
         finite[i] = ok
         bit_u[i] = depth if ok else 0.0
@@ -63,23 +51,11 @@ def screen_members(q, q_rate, q_acceleration, axial_start, bit_row, top_row, rop
     hypot(v, w) <= lateral_max (n_nodes,), v and w (m, n_nodes) the nodes' lateral
     displacements (m).
     """
-    members, n = q.shape
-    size = bit_row.shape[0]
     nodes = lateral_max.shape[0]
     count = 0
-    for i in range(members):
-        nan_test = 0.0
-        energy = 0.0
-        for j in range(n):
-            rate = q_rate[i, j]
-            nan_test += (q[i, j] - q[i, j]) + (rate - rate) + (q_acceleration[i, j]
-                                                               - q_acceleration[i, j])
-            energy += rate * rate
-        depth = 0.0
-        speed = 0.0
-        for c in range(size):
-            depth += bit_row[c] * q[i, axial_start + c]
-            speed += top_row[c] * q_rate[i, axial_start + c]
+    for i in range(q.shape[0]):
+        nan_test, energy, depth, speed = _member(q, q_rate, q_acceleration, i, axial_start,
+                                                 bit_row, top_row)
         depth += bounds[0]
         bit = rop[i] + omega[i] + wob[i] + tob[i]
         broken = not (nan_test == 0.0 and bit - bit == 0.0)
@@ -116,3 +92,26 @@ def largest_top_speed(q_rate, start, row):
             return np.nan
         largest = max(largest, abs(speed))
     return largest
+
+
+@inline
+def _member(q, q_rate, q_acceleration, i, axial_start, bit_row, top_row):
+    """
+    Return member i's (nan test, q'.q', bit's axial displacement, top's axial speed).
+
+    The nan test is 0 when q, q' and q'' are finite (x - x is 0 for every finite x, nan
+    otherwise).
+    """
+    nan_test = 0.0
+    energy = 0.0
+    for j in range(q.shape[1]):
+        rate = q_rate[i, j]
+        nan_test += (q[i, j] - q[i, j]) + (rate - rate) + (q_acceleration[i, j]
+                                                           - q_acceleration[i, j])
+        energy += rate * rate
+    depth = 0.0
+    speed = 0.0
+    for c in range(bit_row.shape[0]):
+        depth += bit_row[c] * q[i, axial_start + c]
+        speed += top_row[c] * q_rate[i, axial_start + c]
+    return nan_test, energy, depth, speed

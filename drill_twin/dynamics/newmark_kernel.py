@@ -643,23 +643,23 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out, c
             bit_torque, at = _take(floats, at, bit_torque, index, compacted, True)
             fade_speed, at = _take(floats, at, fade_speed, index, compacted,
                                    fade_speed.shape[0] > 1)
-            radial, at = _take2(floats, at, radial, index, compacted, False)
-            final_radial, at = _take2(floats, at, final_radial, index, compacted, True)
-            law, at = _take2(floats, at, law, index, compacted, law.shape[0] > 1)
-            flexibilities, at = _take3(floats, at, flexibilities, index, compacted, False)
-            responses, at = _take3(floats, at, responses, index, compacted, False)
-            bit_jacobian, at = _take3(floats, at, bit_jacobian, index, compacted, True)
-            germ, at = _take3(floats, at, germ, index, compacted, germ.shape[0] > 1)
-            tangent, at = _take4(floats, at, tangent, index, compacted, False)
-            final_tangent, at = _take4(floats, at, final_tangent, index, compacted, True)
+            radial, at = _take(floats, at, radial, index, compacted, False)
+            final_radial, at = _take(floats, at, final_radial, index, compacted, True)
+            law, at = _take(floats, at, law, index, compacted, law.shape[0] > 1)
+            flexibilities, at = _take(floats, at, flexibilities, index, compacted, False)
+            responses, at = _take(floats, at, responses, index, compacted, False)
+            bit_jacobian, at = _take(floats, at, bit_jacobian, index, compacted, True)
+            germ, at = _take(floats, at, germ, index, compacted, germ.shape[0] > 1)
+            tangent, at = _take(floats, at, tangent, index, compacted, False)
+            final_tangent, at = _take(floats, at, final_tangent, index, compacted, True)
             active, flag_at = _take(flags, flag_at, active, index, compacted, True)
             bit_ok, flag_at = _take(flags, flag_at, bit_ok, index, compacted, True)
             on_wall, flag_at = _take(flags, flag_at, on_wall, index, compacted, False)
             bit_lifted, flag_at = _take(flags, flag_at, bit_lifted, index, compacted, True)
             bit_solved, flag_at = _take(flags, flag_at, bit_solved, index, compacted, True)
             due, flag_at = _take(flags, flag_at, due, index, compacted, True)
-            in_contact, flag_at = _take2(flags, flag_at, in_contact, index, compacted, False)
-            final_contact, flag_at = _take2(flags, flag_at, final_contact, index, compacted,
+            in_contact, flag_at = _take(flags, flag_at, in_contact, index, compacted, False)
+            final_contact, flag_at = _take(flags, flag_at, final_contact, index, compacted,
                                             True)
         iterations = iteration
         fields(a, d_pred, v_pred, cd, cv, top_speed, top_acceleration, shapes[0], shapes[1],
@@ -746,50 +746,14 @@ def _narrow(floats, at, full, index, k, gather):
 @inline
 def _take(buffer, at, full, index, k, gather):
     """
-    Return what :func:`_narrow` does, for a members-first (m,) array.
+    Return what :func:`_narrow` does, for a members-first (m, ...) array.
 
-    A (1,) array (one value shared by the batch, gather False) stays as it is.
+    An array with one row shared by the batch (shape[0] 1, gather False) stays as it is.
     """
     if full.shape[0] == 1 and not gather:
         return full, at
-    view = buffer[at:at + k]
-    if gather:
-        for c in range(k):
-            view[c] = full[index[c]]
-    return view, at + full.size
-
-
-@inline
-def _take2(buffer, at, full, index, k, gather):
-    """Return what :func:`_take` does, for a (m, p) array (a (1, p) one stays as it is)."""
-    if full.shape[0] == 1 and not gather:
-        return full, at
-    p = full.shape[1]
-    view = buffer[at:at + k * p].reshape((k, p))
-    if gather:
-        for c in range(k):
-            view[c] = full[index[c]]
-    return view, at + full.size
-
-
-@inline
-def _take3(buffer, at, full, index, k, gather):
-    """Return what :func:`_take` does, for a (m, p, r) array."""
-    if full.shape[0] == 1 and not gather:
-        return full, at
-    p, r = full.shape[1], full.shape[2]
-    view = buffer[at:at + k * p * r].reshape((k, p, r))
-    if gather:
-        for c in range(k):
-            view[c] = full[index[c]]
-    return view, at + full.size
-
-
-@inline
-def _take4(buffer, at, full, index, k, gather):
-    """Return what :func:`_take` does, for a (m, p, r, s) array."""
-    p, r, t = full.shape[1], full.shape[2], full.shape[3]
-    view = buffer[at:at + k * p * r * t].reshape((k, p, r, t))
+    size = full.size // full.shape[0] * k
+    view = buffer[at:at + size].reshape((k,) + full.shape[1:])
     if gather:
         for c in range(k):
             view[c] = full[index[c]]
