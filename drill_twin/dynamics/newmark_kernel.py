@@ -660,7 +660,7 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out, c
             due, flag_at = _take(flags, flag_at, due, index, compacted, True)
             in_contact, flag_at = _take(flags, flag_at, in_contact, index, compacted, False)
             final_contact, flag_at = _take(flags, flag_at, final_contact, index, compacted,
-                                            True)
+                                           True)
         iterations = iteration
         fields(a, d_pred, v_pred, cd, cv, top_speed, top_acceleration, shapes[0], shapes[1],
                shapes[2], shapes[3], ranges, d, v, displacement_t, theta_x_rate_t,
