@@ -1,6 +1,7 @@
 """The speed of the time loop on this machine, with the dense-product rate measured alongside.
 
     python benchmarks/run_all.py [--seconds S] [--members 1 16 64 256] [--simulate S]
+                                 [--ticks N]
 
 For the default (paper-fidelity) model and each batch size m it prints: the real-time factor
 (simulated seconds per wall second), member-seconds per wall second (m x RTF), force
@@ -10,7 +11,9 @@ that matrix-product limit the batch reaches: the time its dense products would t
 rate over the time its steps took. The dense products of one force evaluation are the ones
 the loop does (block by block): u = Phi q and the rates and accelerations the forces need,
 Phi^T f, and the Newmark residual's C_r v and S0^-1 r (2 m flops per multiply-add). Last, the
-RTF that ``drill-twin simulate`` reports (its own loop, recording included), run as a command.
+RTF that ``drill-twin simulate`` reports (its own loop, recording included), run as a command,
+and the CPU time of the twin's tick, mean model and 64 members in one process
+(``benchmarks/twin_tick.py``: p50, p99 against the 10 ms budget).
 
 On a shared machine the absolute figures move with the load; the matrix rate measured in the
 same run and the fractions say how much. The CPU-time columns (this process's CPU seconds,
@@ -110,6 +113,14 @@ def simulate_command(seconds: float) -> tuple[float, float, float]:
     return float(match.group(1)), wall, child_cpu
 
 
+def twin_tick_command(ticks: int) -> str:
+    """The summary line of ``benchmarks/twin_tick.py --ticks ticks`` (its own process)."""
+    script = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'twin_tick.py')
+    out = subprocess.run([sys.executable, script, '--ticks', str(ticks)], capture_output=True,
+                         text=True, check=True)
+    return out.stdout.strip().splitlines()[-1]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--seconds', type=float, default=5.0,
@@ -117,6 +128,8 @@ def main() -> None:
     parser.add_argument('--members', type=int, nargs='+', default=[1, 16, 64, 256])
     parser.add_argument('--simulate', type=float, default=20.0, metavar='S',
                         help='duration of the drill-twin simulate run (0: skip; default 20)')
+    parser.add_argument('--ticks', type=int, default=500,
+                        help='twin ticks of benchmarks/twin_tick.py (0: skip; default 500)')
     args = parser.parse_args()
     config = load_config()
     print(f'{datetime.now(timezone.utc):%Y-%m-%d %H:%M} UTC, {platform.node()}, '
@@ -145,6 +158,8 @@ def main() -> None:
         print(f'drill-twin simulate --duration {args.simulate:g}: real-time factor {rtf:.2f} '
               f'(its loop, wall clock); the command took {wall:.1f} s wall, {cpu:.1f} s CPU '
               f'(start-up included)')
+    if args.ticks > 0:
+        print(f'twin tick (benchmarks/twin_tick.py, one process): {twin_tick_command(args.ticks)}')
     print(f'load average at the end {os.getloadavg()[0]:.2f}')
 
 
