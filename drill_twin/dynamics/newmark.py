@@ -10,8 +10,9 @@ Iteration. At an iterate a_k the finite-strain and kinetic-coupling forces are f
 point, as in the paper: they are small and smooth), the wall contact is linearised (Newton:
 its 2x2 stiffness k_ip [n n^T + (p/r)(I - n n^T)] at every touching node) and the bit-rock law
 is solved exactly. With S = S0 + U_c D_c U_c^T (S0 = M_r + gamma dt C_r + beta dt^2 K_r,
-inverted once; the contact terms added per member by the Woodbury identity) the accelerations
-are linear in the bit force F:
+inverted once; the contact terms, and the inertia of an imbalance (excitation.py) on its node's
+(v, w, theta_x), added per member by the Woodbury identity) the accelerations are linear in
+the bit force F:
 
     a = a_k - S^-1 R_nobit(a_k) + S^-1 B (F(x) - F_c),
 
@@ -208,15 +209,18 @@ class NewmarkIntegrator:
         # S0 is within 1e-3 of the identity (mass-normalised modes, dt << periods): its
         # explicit inverse is as accurate as an LU and a product is cheaper for a batch.
         self.effective_inverse_t = np.ascontiguousarray(la.inv(effective).T)
-        # Local-law directions: bit (axial, torsion), then v and w of every node.
-        local = np.zeros((n, 2 + 2 * system.n_nodes))
+        # Local-law directions: bit (axial, torsion), v and w of every node, then theta_x at
+        # the imbalance's node (zero without one).
+        local = np.zeros((n, 3 + 2 * system.n_nodes))
         axial, torsion = system.blocks['axial'], system.blocks['torsional']
         local[axial.columns, 0] = axial.shapes[system.bit_node]
         local[torsion.columns, 1] = torsion.shapes[system.bit_node]
         bending_y, bending_z = system.blocks['bending_y'], system.blocks['bending_z']
         nodes = system.n_nodes
         local[bending_y.columns, 2:2 + nodes] = bending_y.shapes[:nodes].T       # v rows
-        local[bending_z.columns, 2 + nodes:] = bending_z.shapes[:nodes].T        # w rows
+        local[bending_z.columns, 2 + nodes:2 + 2 * nodes] = bending_z.shapes[:nodes].T  # w
+        if forces.imbalance is not None:
+            local[torsion.columns, 2 + 2 * nodes] = torsion.shapes[forces.imbalance.node]
         self.local_directions = local
         self.local_response = la.solve(effective, local)                  # S0^-1 U
         self.local_gram = local.T @ self.local_response                   # U^T S0^-1 U

@@ -181,7 +181,8 @@ def update(iteration, force_t, radial, in_contact, tangent, touching, theta_x_ra
            previous_lifted, work_d, work_v, a, modal, residual, y, product, responses, touch,
            error, previous_error, active, bit_ok, scratch, flexibilities, on_wall, final_full,
            final_modal, final_radial, final_contact, final_tangent, bit_rop, bit_omega,
-           bit_force, bit_torque, bit_lifted, bit_jacobian, bit_solved):
+           bit_force, bit_torque, bit_lifted, bit_jacobian, bit_solved, imbalance,
+           displacement_t):
     """
     One iteration after the forces of the iterate (force_t, members last, without the bit).
 
@@ -237,12 +238,13 @@ def update(iteration, force_t, radial, in_contact, tangent, touching, theta_x_ra
     _block_product(effective_inverse, groups, residual, y)
     # S^-1 with the contact tangents (Woodbury), members on the wall only.
     for i in range(members):
-        on_wall[i] = touching > 0 and _touches(in_contact, i, n_nodes)
+        on_wall[i] = touching > 0 and _touches(in_contact, i, n_nodes) or imbalance[0]
         if on_wall[i]:
             responses[i, :, :] = bit_response
             flexibilities[i, :, :] = _woodbury(i, in_contact, tangent, n_nodes, dt2,
                                                local_directions, local_response, local_gram,
-                                               bit_rows, y, responses[i])
+                                               bit_rows, y, responses[i], imbalance,
+                                               displacement_t)
         else:
             flexibilities[i, :, :] = bit_flexibility
     # The iterate's bit velocities (start), B^T y, |v|.
@@ -371,17 +373,23 @@ def _touches(in_contact, i, n_nodes):
 
 @kernel
 def _woodbury(i, in_contact, tangent, n_nodes, dt2, local_directions, local_response,
-              local_gram, bit_rows, y, response):
+              local_gram, bit_rows, y, response, imbalance, displacement_t):
     """
-    S^-1 with the contact tangents of member i's touching nodes (Woodbury).
+    S^-1 with the contact tangents of member i's touching nodes and the imbalance (Woodbury).
 
-    Corrects y[:, i] and response (S^-1 B, (n, 2)) in place; returns B^T S^-1 B (2, 2).
+    The wall's tangent k_ip [...] at each touching node enters as beta dt^2 times it on the
+    node's (v, w); the imbalance, whose force -A (v'', w'', theta_x'') at its node is linear in
+    the accelerations, as A = [[0, 0, -m e s], [0, 0, m e c], [-m e s, m e c, m e^2]] (s, c of
+    the node's spin angle) on its (v, w, theta_x): the Newton step then takes its inertia
+    whole instead of as a fixed point (which needed three iterations a step). Corrects y[:, i]
+    and response (S^-1 B, (n, 2)) in place; returns B^T S^-1 B (2, 2).
     """
     count = 0
     for node in range(n_nodes):
         if in_contact[i, node]:
             count += 1
-    rank = 2 * count
+    extra = 3 if imbalance[0] else 0
+    rank = 2 * count + extra
     index = np.empty(rank, dtype=np.int64)
     d = np.zeros((rank, rank))
     k = 0
@@ -392,6 +400,18 @@ def _woodbury(i, in_contact, tangent, n_nodes, dt2, local_directions, local_resp
                 for c in range(2):
                     d[2 * k + r, 2 * k + c] = dt2 * tangent[i, node, r, c]
             k += 1
+    if extra:
+        indices, constants, top_angle = imbalance[1], imbalance[2], imbalance[3]
+        node = indices[0]
+        angle = top_angle[0] + displacement_t[indices[1], i]
+        me, inertia = constants[0], constants[1]
+        s, c = np.sin(angle), np.cos(angle)
+        first = 2 * count
+        index[first], index[first + 1], index[first + 2] = (2 + node, 2 + n_nodes + node,
+                                                            2 + 2 * n_nodes)
+        d[first, first + 2] = d[first + 2, first] = -me * s
+        d[first + 1, first + 2] = d[first + 2, first + 1] = me * c
+        d[first + 2, first + 2] = inertia
     gram = np.empty((rank, rank))
     for r in range(rank):
         for c in range(rank):
@@ -685,7 +705,8 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out, c
             previous_lifted, d, v, a, modal, residual, y, product, responses, touch, error,
             previous_error, active, bit_ok, scratch, flexibilities, on_wall, final_full,
             final_modal, final_radial, final_contact, final_tangent, bit_rop, bit_omega,
-            bit_force, bit_torque, bit_lifted, bit_jacobian, bit_solved)
+            bit_force, bit_torque, bit_lifted, bit_jacobian, bit_solved, imbalance,
+            displacement_t)
         robust += used
         if still == 0:
             break
