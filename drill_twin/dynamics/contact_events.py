@@ -129,12 +129,9 @@ class ContactEpisodes:
         touch (called only for those). ``any_touching``: whether any flag of in_contact is
         set, when the caller knows (None: looked up).
         """
-        if any_touching is False and not self._open:      # nothing touches, nothing open
-            self.opened, self.closed = [], []
-            return
         touching = np.asarray(in_contact, dtype=bool)
-        if not self._open and not touching.any():
-            self.opened, self.closed = [], []
+        if not self._open and (any_touching is False or not touching.any()):
+            self.opened, self.closed = [], []            # nothing touches, nothing open
             return
         force = np.asarray(radial_force_n, dtype=float)
         penetration = force / stiffness_n_per_m if stiffness_n_per_m > 0 else 0.0 * force

@@ -243,6 +243,11 @@ class NewmarkIntegrator:
                     else np.empty(0))
         damping_blocks, groups, inverse_blocks = _diagonal_blocks(
             self.damping, la.inv(effective), self._ranges[:, 2:])
+        # g(t + dt) of the driven rotation and the hook (newmark_kernel.external_load).
+        self._load_operands = (np.ascontiguousarray(system.mass_driven, dtype=float),
+                               np.ascontiguousarray(system.damping_driven, dtype=float),
+                               np.ascontiguousarray(self.top_axial_row, dtype=float),
+                               float(self.static_hook_load_n))
         self._operators = (
             self._shapes, tuple(np.ascontiguousarray(block.shapes_t) for block in blocks),
             self._ranges, system.bit_node, system.n_nodes,
@@ -253,11 +258,7 @@ class NewmarkIntegrator:
             np.ascontiguousarray(self.local_gram), self.bit_rows, self.bit_response,
             np.ascontiguousarray(self.bit_flexibility), self.bit_axial_row,
             forces.bit_axial_index, forces.bit_torsion_index, self.time_step_s,
-            BETA * self.time_step_s ** 2, self.tolerance,
-            np.ascontiguousarray(system.mass_driven, dtype=float),
-            np.ascontiguousarray(system.damping_driven, dtype=float),
-            np.ascontiguousarray(self.top_axial_row, dtype=float),
-            float(self.static_hook_load_n))
+            BETA * self.time_step_s ** 2, self.tolerance) + self._load_operands
         self._hook_scalar = np.empty(1)                  # one hook load for the batch (N)
         without_bit = self._forces_without_bit
         self._forces_arguments = (without_bit.switches, without_bit.strain_arguments,
@@ -394,20 +395,16 @@ class NewmarkIntegrator:
 
         ``hook_load_n``: one hook load for the batch (N), or one per member, (m,).
         """
-        system = self.system
-        driven = -system.mass_driven * top_acceleration - system.damping_driven * top_speed
-        change = np.asarray(hook_load_n, dtype=float) - self.static_hook_load_n
-        if change.ndim == 0:
-            return driven - self.top_axial_row * float(change)
-        return driven[None, :] - change[:, None] * self.top_axial_row[None, :]
+        hooks = np.atleast_1d(np.asarray(hook_load_n, dtype=float))
+        load = np.empty((self.system.size, hooks.shape[0]))
+        compiled.external_load(float(top_speed), float(top_acceleration),
+                               np.ascontiguousarray(hooks), *self._load_operands, load)
+        return load[:, 0] if np.ndim(hook_load_n) == 0 else load.T
 
     def _stiffness_times(self, q):
         if self._stiffness_diagonal is not None:
             return q * self._stiffness_diagonal
         return q @ self.stiffness.T
-
-    def _mass_times(self, a):
-        return a if self._mass_is_identity else a @ self.mass.T
 
     # -- one step ------------------------------------------------------------------------
     def step(self, state: BatchState, top_speed_rad_per_s: float,

@@ -186,9 +186,8 @@ class StateGuard:
         q = np.ascontiguousarray(state.q)
         v = w = self._no_nodes
         if self.lateral:
-            (y_columns, y_rows), (z_columns, z_rows) = self._bending
             with np.errstate(invalid='ignore', over='ignore'):    # a diverged member's
-                v, w = q[:, y_columns] @ y_rows, q[:, z_columns] @ z_rows
+                v, w = self._node_displacements(q)
         screen_members(
             q, np.ascontiguousarray(state.q_rate), np.ascontiguousarray(state.q_acceleration),
             self._axial_start, self._bit_row, self._top_row, forces.rop_m_per_s,
@@ -228,10 +227,14 @@ class StateGuard:
                   'rop': rop, 'top_axial_speed': top_rate, 'bit_speed': omega, 'wob': wob,
                   'tob': tob, 'kinetic_energy': kinetic}
         if self.lateral:
-            (y_columns, y_rows), (z_columns, z_rows) = self._bending
-            values['radius'] = np.hypot(np.ascontiguousarray(q[:, y_columns]) @ y_rows,
-                                        np.ascontiguousarray(q[:, z_columns]) @ z_rows)
+            values['radius'] = np.hypot(*self._node_displacements(q))
         return values
+
+    def _node_displacements(self, q) -> tuple[np.ndarray, np.ndarray]:
+        """Return every node's lateral displacements (v, w), (m, n_nodes) each (m)."""
+        (y_columns, y_rows), (z_columns, z_rows) = self._bending
+        return (np.ascontiguousarray(q[:, y_columns]) @ y_rows,
+                np.ascontiguousarray(q[:, z_columns]) @ z_rows)
 
     def _reason(self, k: int, values: dict, top_speed_rad_per_s: float) -> str:
         """Why member k breaks a bound (the first bound it breaks), one phrase."""
