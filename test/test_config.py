@@ -232,3 +232,14 @@ def test_the_lateral_profile_is_the_paper_with_an_imbalance(default_config):
     assert imbalance.position_m == 1500.0
     ours, paper = config_to_dict(profile), config_to_dict(default_config)
     assert {k for k in ours if ours[k] != paper[k]} == {'excitation'}
+
+
+def test_the_bit_bounce_profile_is_the_lateral_profile_on_lobes():
+    """config/ritto2009_bit_bounce.yaml: the lateral profile on a three-lobed bottom of 1.8 mm."""
+    profile = load_config(REPO / 'config' / 'ritto2009_bit_bounce.yaml')
+    lateral = load_config(REPO / 'config' / 'ritto2009_lateral.yaml')
+    pattern = profile.excitation.bottom_hole_pattern
+    assert pattern.enabled and pattern.lobes == 3 and pattern.amplitude_m == 0.0018
+    assert profile.excitation.imbalance == lateral.excitation.imbalance
+    ours, theirs = config_to_dict(profile), config_to_dict(lateral)
+    assert {k for k in ours if ours[k] != theirs[k]} == {'excitation'}

@@ -560,11 +560,47 @@ class Imbalance:
         return self.mass_kg * self.eccentricity_m if self.enabled else 0.0
 
 
+LOBES_MAX = 12
+LOBES_REASON = 'roller-cone bits cut 3 lobes; more than 12 is no bottom-hole pattern'
+LOBE_AMPLITUDE_MAX_M = 0.02
+LOBE_AMPLITUDE_REASON = 'lobes of a bottom-hole pattern are millimetres high, not centimetres'
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class BottomHolePattern:
+    """
+    A lobed hole bottom: the rock's surface under the bit rises and falls as the bit turns.
+
+    The undeformed bottom under the bit lies ``amplitude_m`` sin(``lobes`` phi) below the
+    hole's mean bottom, phi the bit's spin angle (top-drive angle plus the bit's twist): the
+    surface a roller-cone bit cuts (three lobes), the classic axial excitation of bit bounce
+    (docs/LATERAL.md, section 11). The bit-rock law sets the bit's velocity relative to that
+    surface. Needs a compliant rock (``bit_rock.contact_stiffness_n_per_m``).
+    """
+
+    enabled: bool = False
+    lobes: int = 3
+    amplitude_m: float = 0.0
+
+    def __post_init__(self):
+        if isinstance(self.lobes, bool) or not isinstance(self.lobes, int) or self.lobes < 1:
+            raise ConfigValueError('lobes', f'must be a whole number >= 1, got {self.lobes!r}')
+        _at_most(self, 'lobes', LOBES_MAX, LOBES_REASON)
+        _non_negative(self, 'amplitude_m')
+        _at_most(self, 'amplitude_m', LOBE_AMPLITUDE_MAX_M, LOBE_AMPLITUDE_REASON)
+
+    @property
+    def height_m(self) -> float:
+        """Return the lobes' amplitude (m); zero when disabled."""
+        return self.amplitude_m if self.enabled else 0.0
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class Excitation:
-    """Sources of lateral excitation outside the paper's model (all off by default)."""
+    """Sources of excitation outside the paper's model (all off by default)."""
 
     imbalance: Imbalance = field(default_factory=Imbalance)
+    bottom_hole_pattern: BottomHolePattern = field(default_factory=BottomHolePattern)
 
 
 KineticCouplingSign = Literal['derived', 'printed']
@@ -674,6 +710,12 @@ class DrillStringConfig:
             raise ConfigValueError(
                 'excitation.imbalance.position_m',
                 f'{imbalance.position_m} m is below the bit (string length {length} m)')
+        pattern = self.excitation.bottom_hole_pattern
+        if pattern.enabled and self.bit_rock.contact_stiffness_n_per_m is None:
+            raise ConfigValueError(
+                'excitation.bottom_hole_pattern.enabled',
+                'a lobed hole bottom needs a compliant rock (bit_rock.contact_stiffness_n_per_m '
+                'is null: a rigid rock would stop the bit on each lobe within one step)')
         for index, x in enumerate(self.output.stations_m):
             if x > length:
                 raise ConfigValueError(

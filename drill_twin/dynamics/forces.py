@@ -16,6 +16,7 @@ import numpy as np
 from drill_twin.dynamics.bit_rock import BitRockLaw
 from drill_twin.dynamics.compiled import kernel
 from drill_twin.dynamics.contact import ContactForces, accumulate_contact
+from drill_twin.dynamics.bottom_hole_pattern import LobedBottom
 from drill_twin.dynamics.excitation import ImbalanceForce, accumulate_imbalance
 from drill_twin.dynamics.finite_strain import (WORK_ROWS, StrainOperators,
                                                accumulate_finite_strain)
@@ -215,6 +216,7 @@ class NonlinearForces:
         self.outer_radius_m = np.ascontiguousarray(system.node_outer_radius_m, dtype=float)
         self.imbalance = ImbalanceForce.of(system)     # excitation.imbalance, None when off
         self.imbalance_arguments = ImbalanceForce.arguments_of(self.imbalance, system)
+        self.bottom_pattern = LobedBottom.of(system)   # the lobed hole bottom, None when off
         self.rotating_damping = RotatingDampingOperators.of(system)
         self.rotating_arguments = self.rotating_damping.arguments()
         """lateral_readings.stiffness_damping's circulatory force (inert when fixed_frame)."""

@@ -66,6 +66,7 @@ import numpy as np
 import scipy.linalg as la
 
 from drill_twin.dynamics import newmark_kernel as compiled
+from drill_twin.dynamics.bottom_hole_pattern import LobedBottom
 from drill_twin.dynamics.bit_rock import fade_speeds
 from drill_twin.dynamics.contact import ContactForces
 from drill_twin.dynamics.forces import ForceEvaluation, Kinematics, NonlinearForces
@@ -271,6 +272,7 @@ class NewmarkIntegrator:
         #                                   2-iteration step
         self._active = None               # (contact flags, lift-off flags) at the last step
         self._before_step = None          # the bookkeeping before the last step
+        self._flat_surface = None         # bottom_surface's zeros without a lobed bottom
 
     # -- initial state -------------------------------------------------------------------
     def initial_state(self, q: np.ndarray, q_rate: np.ndarray, top_speed_rad_per_s: float,
@@ -285,7 +287,9 @@ class NewmarkIntegrator:
         state = BatchState(0.0, np.array(q, dtype=float), np.array(q_rate, dtype=float),
                            np.zeros_like(q, dtype=float), top_angle_rad,
                            top_speed_rad_per_s, 0.0, hook_load_n)
-        bit_u = state.q @ self.bit_axial_row
+        # The bit's own position, on the lobes' surface when it has one (the hole's mean
+        # bottom is s above that surface).
+        bit_u = state.q @ self.bit_axial_row - self.bottom_surface(state)[0]
         state.hole_u = bit_u.copy() if hole_u is None else np.maximum(
             np.broadcast_to(np.asarray(hole_u, dtype=float), bit_u.shape), bit_u)
         compliance = self.forces.law.compliance
@@ -322,6 +326,8 @@ class NewmarkIntegrator:
         if not self.forces.physics.bit_rock:
             return evaluation
         rop, omega = evaluation.rop_m_per_s, evaluation.bit_speed_rad_per_s
+        height, height_rate = self.bottom_surface(state, omega)
+        rop = rop - height_rate                    # the law: relative to the lobes' surface
         force, torque, lifted, jacobian = self.forces.law.forces_and_jacobian(
             rop, omega, self.germ, self._law_scales)
         rising = (rop < 0.0) & ~lifted
@@ -336,13 +342,33 @@ class NewmarkIntegrator:
                 torque[i] = law.torque_of_force(force[i], omega[i])
                 jacobian[i] = 0.0
         if state.hole_u is not None:
-            off = state.q @ self.bit_axial_row < state.hole_u - ON_BOTTOM_TOLERANCE_M
+            off = state.q @ self.bit_axial_row < state.hole_u + height - ON_BOTTOM_TOLERANCE_M
             force, torque = np.where(off, 0.0, force), np.where(off, 0.0, torque)
             lifted = lifted | off
             jacobian = np.where(off[:, None, None], 0.0, jacobian)
-        bit = _BitSolution(rop, omega, force, torque, lifted, jacobian,
+        bit = _BitSolution(rop + height_rate, omega, force, torque, lifted, jacobian,
                            np.ones(rop.shape, dtype=bool))
         return self._with_bit(evaluation, bit)
+
+    def bottom_surface(self, state: BatchState, omega: np.ndarray | None = None):
+        """
+        Return (s, ds/dt) of the lobed hole bottom under each member's bit, (m,) each (m, m/s).
+
+        s: how far the undeformed rock under the bit lies below the hole's mean bottom
+        (``state.hole_u``), at the bit's angle (top-drive angle plus twist); ds/dt at the bit's
+        spin rate ``omega`` (m,) (rad/s; zeros if None). Zeros without a pattern.
+        """
+        members = state.q.shape[0]
+        pattern = self.forces.bottom_pattern
+        if pattern is None:                      # (read-only zeros, kept per batch size)
+            if self._flat_surface is None or self._flat_surface[0].shape[0] != members:
+                zeros = np.zeros(members)
+                zeros.flags.writeable = False
+                self._flat_surface = (zeros, zeros)
+            return self._flat_surface
+        angle = state.top_angle_rad + state.q @ self.bit_rows[1]
+        rate = np.zeros(members) if omega is None else omega
+        return pattern.height_m(angle), pattern.height_rate_m_per_s(angle, rate)
 
     @property
     def germ(self) -> np.ndarray | None:
@@ -381,7 +407,8 @@ class NewmarkIntegrator:
         rows = np.ascontiguousarray(law.rows(self._law_scales))
         self._bit_constants = (float(self.static_bit_force[0]),
                                bool(self.forces.physics.bit_rock), rows,
-                               np.ascontiguousarray(fade_speeds(rows)), germs, germ is not None)
+                               np.ascontiguousarray(fade_speeds(rows)), germs, germ is not None,
+                               LobedBottom.arguments_of(self.forces.bottom_pattern))
         self._step_operators = self._operators + self._bit_constants
 
     def with_time_step(self, time_step_s: float) -> 'NewmarkIntegrator':
@@ -449,6 +476,8 @@ class NewmarkIntegrator:
         self.forces.strain_operators.set_top_angle(top_angle)   # printed_absolute's
         if self.forces.imbalance is not None:          # the angle its force turns with
             self.forces.imbalance.set_top_angle(top_angle)
+        if self.forces.bottom_pattern is not None:     # the angle the lobes turn with
+            self.forces.bottom_pattern.set_top_angle(top_angle)
         iterations, robust, count, touching = compiled.step(
             (np.ascontiguousarray(state.q), np.ascontiguousarray(state.q_rate),
              np.ascontiguousarray(state.q_acceleration),

@@ -20,6 +20,7 @@ import numpy as np
 from drill_twin.dynamics.bit_equation import solve_one
 from drill_twin.dynamics.bit_rock import (TORQUE_FADE_FORCE_N, cutting_rate, law_point, maximum,
                                           minimum)
+from drill_twin.dynamics.bottom_hole_pattern import surface, surface_at
 from drill_twin.dynamics.compiled import inline, kernel
 from drill_twin.dynamics.excitation import imbalance_node_acceleration
 from drill_twin.dynamics.forces import string_forces
@@ -182,7 +183,7 @@ def update(iteration, force_t, radial, in_contact, tangent, touching, theta_x_ra
            error, previous_error, active, bit_ok, scratch, flexibilities, on_wall, final_full,
            final_modal, final_radial, final_contact, final_tangent, bit_rop, bit_omega,
            bit_force, bit_torque, bit_lifted, bit_jacobian, bit_solved, imbalance,
-           displacement_t):
+           displacement_t, pattern):
     """
     One iteration after the forces of the iterate (force_t, members last, without the bit).
 
@@ -193,8 +194,10 @@ def update(iteration, force_t, radial, in_contact, tangent, touching, theta_x_ra
     state) in final_*. Loops over the n coordinates run with the members innermost (the
     arrays' layout); the per-member work (the bit, the decisions) runs member by member.
     scratch (6, m), flexibilities (m, 2, 2), responses (m, n, 2) (S^-1 B of members on the
-    wall), on_wall (m,): work arrays. Returns (members still active, 1 if any member needed
-    the bracketed bit solve).
+    wall), on_wall (m,): work arrays. pattern: the lobed hole bottom's operands
+    (bottom_hole_pattern.LobedBottom.arguments): the bit equation is solved in the frame of
+    the surface under the bit, at the iterate's angle and spin rate. Returns (members still
+    active, 1 if any member needed the bracketed bit solve).
     """
     n, members = a.shape
     shapes_t = (shapes_t_axial, shapes_t_torsion, shapes_t_y, shapes_t_z)
@@ -273,10 +276,14 @@ def update(iteration, force_t, radial, in_contact, tangent, touching, theta_x_ra
         g = min(i, germ.shape[0] - 1)
         k = min(i, law.shape[0] - 1)
         if bit_rock:
+            # The lobes: the surface lies s below the mean bottom and moves at ds/dt.
+            height, height_rate = surface_at(pattern, displacement_t, i, omega)
             x0, x1, f0, f1, lifted, j00, j01, j10, j11, solved, robust = _solve_bit(
-                linear0, linear1, flexibilities[i], rop[i], omega, touch[i], slope, gdt,
+                linear0 - height_rate, linear1, flexibilities[i], rop[i] - height_rate, omega,
+                touch[i] + GAMMA / (BETA * dt) * height - height_rate, slope, gdt,
                 static_force, germ[g, 0, 0], germ[g, 0, 1], germ[g, 1, 1], random, law[k],
                 fade_speed[k])
+            x0 += height_rate
             robust_used |= robust
         else:
             x0, x1, f0, f1 = linear0, linear1, static_force, 0.0
@@ -511,15 +518,17 @@ def _solve_bit(linear0, linear1, h, start0, start1, touch, slope, gdt, static_fo
 @kernel
 def finish(d_pred, v_pred, a, cd, cv, bit_axial_row, hole, bit_force, bit_torque, compliance,
            static_force, bit_rows, axial_index, torsion_index, final_full, final_modal,
-           error, bit_ok, tolerance, q, q_rate, q_acceleration, hole_out, finite, converged):
+           error, bit_ok, tolerance, q, q_rate, q_acceleration, hole_out, finite, converged,
+           pattern):
     """
     Finish a step.
 
     The bit's exact forces into the final evaluation (final_full (n_dofs, m), final_modal (n,
     m)), the new state members first (q, q_rate, q_acceleration (m, n), hole_out (m,): the hole
     only deepens, to where the bit ends less the depth -F1 / k by which it presses a compliant
-    rock, ``compliance`` = 1 / k, 0 for a rigid one), finite and converged (m,). Returns the
-    number of members converged.
+    rock, ``compliance`` = 1 / k, 0 for a rigid one, and less the lobes' height s of a
+    ``pattern``'s surface under it: the hole is the mean bottom), finite and converged (m,).
+    Returns the number of members converged.
     """
     n, members = a.shape
     count = 0
@@ -529,6 +538,7 @@ def finish(d_pred, v_pred, a, cd, cv, bit_axial_row, hole, bit_force, bit_torque
         final_full[axial_index, i] += change0
         final_full[torsion_index, i] += change1
         bit_u = 0.0
+        twist = 0.0
         ok = True
         for j in range(n):
             final_modal[j, i] += change0 * bit_rows[0, j] + change1 * bit_rows[1, j]
@@ -536,8 +546,10 @@ def finish(d_pred, v_pred, a, cd, cv, bit_axial_row, hole, bit_force, bit_torque
             v = v_pred[j, i] + cv * a[j, i]
             q[i, j], q_rate[i, j], q_acceleration[i, j] = d, v, a[j, i]
             bit_u += d * bit_axial_row[j]
+            twist += d * bit_rows[1, j]
             ok = ok and np.isfinite(d) and np.isfinite(v)
-        hole_out[i] = maximum(hole[i], bit_u + compliance * minimum(bit_force[i], 0.0))
+        height = surface(pattern, pattern[2][0] + twist, 0.0)[0]
+        hole_out[i] = maximum(hole[i], bit_u + compliance * minimum(bit_force[i], 0.0) - height)
         finite[i] = ok
         converged[i] = ok and bit_ok[i] and error[i] <= tolerance
         count += converged[i]
@@ -587,7 +599,7 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out, c
      stiffness_diagonal, effective_inverse, groups, local_directions, local_response, local_gram,
      bit_rows, bit_response, bit_flexibility, bit_axial_row, axial_index, torsion_index, dt,
      dt2, tolerance, mass_driven, damping_driven, top_axial_row, static_hook, static_force,
-     bit_rock, law, fade_speed, germ, random) = operators
+     bit_rock, law, fade_speed, germ, random, pattern) = operators
     (d_pred, v_pred, a, d, v, residual, y, modal, product, responses, touch, hole, error,
      previous_error, active, bit_ok, scratch, flexibilities, on_wall, load, due,
      displacement_t, theta_x_rate_t, theta_x_acceleration_t, bending_y_rate_t,
@@ -706,7 +718,7 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out, c
             previous_error, active, bit_ok, scratch, flexibilities, on_wall, final_full,
             final_modal, final_radial, final_contact, final_tangent, bit_rop, bit_omega,
             bit_force, bit_torque, bit_lifted, bit_jacobian, bit_solved, imbalance,
-            displacement_t)
+            displacement_t, pattern)
         robust += used
         if still == 0:
             break
@@ -739,7 +751,7 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out, c
     count = finish(d_pred, v_pred, a, cd, cv, bit_axial_row, hole, bit_force, bit_torque,
                    law[0, 7], static_force, bit_rows, axial_index, torsion_index, final_full,
                    final_modal, error, bit_ok, tolerance, q_out, q_rate_out,
-                   q_acceleration_out, hole_out, finite, converged)
+                   q_acceleration_out, hole_out, finite, converged, pattern)
     touching = False
     for i in range(final_contact.shape[0]):
         for node in range(final_contact.shape[1]):

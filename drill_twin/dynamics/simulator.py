@@ -551,13 +551,19 @@ class Simulator:
         """
         Return the rate the hole deepens (m/s), (m,).
 
-        The bit's axial velocity while it is on bottom and moving down, else 0.
+        The bit's axial velocity while it is on bottom and moving down, else 0 (relative to
+        the surface of a lobed bottom, which moves under the bit).
         """
-        return np.where(self.on_bottom(), np.maximum(bit_axial_velocity_m_per_s, 0.0), 0.0)
+        omega = self.last.bit_speed_rad_per_s if self.last is not None else None
+        height, height_rate = self.integrator.bottom_surface(self.state, omega)
+        on_bottom = self._bit_u() >= self.hole_u() + height - ON_BOTTOM_TOLERANCE_M
+        return np.where(on_bottom, np.maximum(bit_axial_velocity_m_per_s - height_rate, 0.0),
+                        0.0)
 
     def on_bottom(self) -> np.ndarray:
-        """(m,) True where the bit is on the hole bottom (within 1 um)."""
-        return self._bit_u() >= self.hole_u() - ON_BOTTOM_TOLERANCE_M
+        """(m,) True where the bit is on the hole bottom (within 1 um; on the lobes' surface)."""
+        height = self.integrator.bottom_surface(self.state)[0]
+        return self._bit_u() >= self.hole_u() + height - ON_BOTTOM_TOLERANCE_M
 
     def _bit_u(self) -> np.ndarray:
         return self.state.q @ self.integrator.bit_axial_row
@@ -592,9 +598,11 @@ class Simulator:
                       - np.sum(forces.full[:keep, self.system.field(1)], axis=1))
         bit_u = q[:, observer.bit_u]
         velocity = forces.rop_m_per_s
-        on_bottom = bit_u >= self.hole_u() - ON_BOTTOM_TOLERANCE_M
-        rop = np.where(on_bottom, np.maximum(velocity, 0.0), 0.0)    # the hole deepens
         omega = forces.bit_speed_rad_per_s
+        height, height_rate = self.integrator.bottom_surface(state, omega)
+        on_bottom = bit_u >= self.hole_u() + height - ON_BOTTOM_TOLERANCE_M
+        # The hole deepens (relative to the surface of a lobed bottom, which moves).
+        rop = np.where(on_bottom, np.maximum(velocity - height_rate, 0.0), 0.0)
         length = self.system.model.mesh.total_length_m
         e = self.law.e
         return Observation(
