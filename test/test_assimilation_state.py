@@ -198,3 +198,37 @@ def test_the_law_factors_are_read_written_bounded_and_change_the_members_law(sma
     assert prior.shape == (2000, 5)
     assert np.std(np.log(prior)) == pytest.approx(0.15, rel=0.05)
     assert np.array_equal(prior, law_scales_for_members(0.15, 0, 2000))
+
+
+def test_an_analysis_that_turns_the_bit_keeps_it_pressed_on_the_lobes():
+    """
+    On a lobed bottom the state's offset is the bit's distance to the surface under it.
+
+    An analysis that changes the twist turns the bit over the lobes: the rock surface under it
+    moves by up to 2 A; the member keeps pressing it by the depth it did (the hole's mean
+    bottom moves instead), so no landing or lift-off is made up by the analysis.
+    """
+    from drill_twin.config import load_config
+    from drill_twin.dynamics.simulator import Simulator
+
+    config = load_config(None, SMALL + ['excitation.bottom_hole_pattern.enabled=true',
+                                        'excitation.bottom_hole_pattern.amplitude_m=0.001'])
+    sim = Simulator(config, 3)
+    for _ in range(100):
+        sim.step()
+    integrator = sim.integrator
+
+    def surface_minus_bit():
+        height = integrator.bottom_surface(sim.state)[0]
+        return sim.hole_u() + height - sim.state.q @ integrator.bit_axial_row
+
+    members = MemberState(sim, 3, ('torsional',), parameters='none')
+    before = surface_minus_bit()
+    assert np.all(sim.on_bottom()) and np.all(before < 0)       # pressed into the rock
+    vectors = members.extract()
+    vectors[:, :members.columns.size] *= 1.1                    # 10 % more twist
+    angle_before = integrator.bit_rows[1] @ sim.state.q[0]
+    members.write(vectors)
+    turned = integrator.bit_rows[1] @ sim.state.q[0] - angle_before
+    assert abs(np.sin(3 * turned / 2)) > 0.1                    # the lobes did move
+    np.testing.assert_allclose(surface_minus_bit(), before, atol=1e-12)

@@ -116,7 +116,7 @@ class MemberState:
         """Return the state vectors, shape (members, size)."""
         state, m = self.simulator.state, self.members
         q, rate = state.q[:m], state.q_rate[:m]
-        offset = self.simulator.hole_u()[:m] - q @ self._bit_row
+        offset = self.simulator.hole_u()[:m] + self._lobes(q) - q @ self._bit_row
         parts = [q[:, self.columns], rate[:, self.columns], offset[:, None]]
         if self.parameters != 'none':
             parts.append(germ_to_coordinates(self.simulator.integrator.germ[:m]))
@@ -176,11 +176,25 @@ class MemberState:
         q, rate = state.q[:m].copy(), state.q_rate[:m].copy()
         q[:, self.columns] = vectors[:, :k]
         rate[:, self.columns] = vectors[:, k:2 * k]
-        pressed = np.minimum(sim.hole_u()[:m] - state.q[:m] @ self._bit_row, 0.0)
+        pressed = np.minimum(sim.hole_u()[:m] + self._lobes(state.q[:m])
+                             - state.q[:m] @ self._bit_row, 0.0)
         offset = np.where(was_on_bottom, pressed, np.maximum(vectors[:, 2 * k], 0.0))
         germs = (coordinates_to_germ(bounded_coordinates(vectors[:, 2 * k + 1:2 * k + 4]))
                  if self.parameters != 'none' else None)
         limit = np.log(LAW_SCALE_LIMIT)
         scales = (np.exp(np.clip(vectors[:, 2 * k + 4:2 * k + 9], -limit, limit))
                   if self.parameters == 'law' else None)
-        sim.set_members(q, rate, q @ self._bit_row + offset, germs, scales)
+        sim.set_members(q, rate, q @ self._bit_row + offset - self._lobes(q), germs, scales)
+
+    def _lobes(self, q: np.ndarray):
+        """
+        Return the lobed bottom's height s under the bits of coordinates q (k, n) (m).
+
+        The state's offset is the bit's distance to the rock surface under it, hole + s - u_bit
+        (0 without a bottom-hole pattern).
+        """
+        integrator = self.simulator.integrator
+        pattern = integrator.forces.bottom_pattern
+        if pattern is None:
+            return 0.0
+        return pattern.height_m(self.simulator.state.top_angle_rad + q @ integrator.bit_rows[1])
