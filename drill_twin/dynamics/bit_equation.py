@@ -114,7 +114,7 @@ def solve_batch(b, c, rho, slope, germ, random, guess, k, out):
         g = min(i, last)
         rop, omega, f1, f2, parameter, cut = solve_one(
             b[i, 0], b[i, 1], c[i, 0], c[i, 1], rho[i], slope[i], germ[g, 0, 0], germ[g, 0, 1],
-            germ[g, 1, 1], random, guess[i], k)
+            germ[g, 1, 1], random, guess[i], k, 0.0)
         out[0, i], out[1, i], out[2, i], out[3, i] = rop, omega, f1, f2
         out[4, i] = 1.0 if f1 >= 0.0 else 0.0
         out[5, i] = 1.0 if parameter > 0 else 0.0
@@ -122,20 +122,30 @@ def solve_batch(b, c, rho, slope, germ, random, guess, k, out):
 
 
 @kernel
-def solve_one(b1, b2, c1, c2, rho, slope, g11, g12, g22, random, guess, k):
-    """One member's solve (module docstring): (rop, omega, F1, F2, P, cutting rate)."""
-    germ = (g11, g12, g22, random)
+def solve_one(b1, b2, c1, c2, rho, slope, g11, g12, g22, random, guess, k, kappa=0.0):
+    """
+    One member's solve (module docstring): (rop, omega, F1, F2, P, cutting rate).
+
+    ``kappa``: on a lobed bottom (bottom_hole_pattern) the surface under the bit moves at
+    kappa omega; the graph holds for the ROP relative to it, ROP - kappa omega, and rho, b1
+    are then the absolute ones (the rop returned is the relative one).
+    """
+    germ = (g11, g12, g22, random, kappa)
+    b1 = b1 - kappa * b2                      # relative to the surface at omega = b2 ...
+    rho = rho - kappa * b2
     if not b1 > maximum(rho, cutting_rate(0.0, b2, k)):
         # The free bit (P <= 0) turns at omega = b2 with no torque: it does not reach the
         # bottom, or outruns the law's cut at zero force, at that speed.
         return b1, b2, 0.0, 0.0, 0.0, cutting_rate(0.0, b2, k)
+    b1, rho = b1 + kappa * b2, rho + kappa * b2   # ... and absolute again below
     warm = np.empty(1)                               # the last omega found
     warm[0] = guess
     # The mean law's root at the guessed speed, as the centre of a bracket widened by
     # doublings: G(0) = max(rho, R(0, b2)) - b1 < 0 on the left, and F1 ~ G11 f for large
     # |f| makes G -> +inf on the right.
     low_b2, high_b2 = minimum(0.0, b2), maximum(0.0, b2)
-    centre = _mean_axial_root(maximum(minimum(guess, high_b2), low_b2), b1, c1, rho, slope, k)
+    start = maximum(minimum(guess, high_b2), low_b2)
+    centre = _mean_axial_root(start, b1 - kappa * start, c1, rho - kappa * start, slope, k)
     half = 0.02 * centre + 1.0
     lo, hi = maximum(centre - half, 0.0), centre + half
     r_lo = _axial_residual(lo, b1, b2, c1, c2, rho, slope, germ, warm, k)
@@ -168,18 +178,23 @@ def solve_one(b1, b2, c1, c2, rho, slope, g11, g12, g22, random, guess, k):
             x, trial, r_trial, bisect, lo, hi, r_lo, r_hi, last_side, FORCE_TOLERANCE,
             FORCE_RELATIVE_TOLERANCE, ROP_TOLERANCE)
     omega = _torsion(x, b2, c2, rho, slope, germ, warm[0], k)
-    rop, f1, f2, cut = _point(x, omega, rho, slope, germ, k)
+    rop, f1, f2, cut = _point(x, omega, rho - kappa * omega, slope, germ, k)
     return rop, omega, f1, f2, x, cut
 
 
 @kernel
 def _axial_residual(parameter, b1, b2, c1, c2, rho, slope, germ, warm, k):
-    """G(P) = ROP(P, omega(P)) - b1 - c1 F1; warm[0]: the last omega found (updated)."""
+    """
+    G(P) = ROP(P, omega(P)) - b1 - c1 F1; warm[0]: the last omega found (updated).
+
+    On a lobed bottom (kappa = germ[4]) ROP, b1 and rho relative to the surface at omega(P).
+    """
     omega = _torsion(parameter, b2, c2, rho, slope, germ, warm[0], k)
     if np.isfinite(omega):
         warm[0] = omega
-    rop, f1, _, _ = _point(parameter, omega, rho, slope, germ, k)
-    return rop - b1 - c1 * f1
+    moving = germ[4] * omega
+    rop, f1, _, _ = _point(parameter, omega, rho - moving, slope, germ, k)
+    return rop - (b1 - moving) - c1 * f1
 
 
 @kernel

@@ -15,9 +15,11 @@ ROP_bit - ds/dt = R(f, omega) while it cuts; it rests on the rock's spring, pres
 u_bit - (u_hole + s), and is free above it. The hole state ``hole_u`` stays the mean bottom
 (it deepens at the relative ROP, the rate a driller measures); the lobes ride on it.
 
-In a Newmark iteration s and ds/dt are taken at the iterate's angle and spin rate and held
-while the 2x2 bit equation is solved (a fixed point that the iterations converge, like the
-imbalance's angle).
+In a Newmark iteration s and kappa = A n cos(n phi) (ds/dt = kappa omega) are taken at the
+iterate's angle and held while the 2x2 bit equation is solved, in which the surface's velocity
+kappa omega moves with the bit's speed (the Newton step's Jacobian and the bracketed solve
+have it: held at the iterate's speed instead, it fed the bit's speed back through the law's
+steep torque near ROP = 0 and stalled steps of random germs in a 2-cycle).
 """
 from __future__ import annotations
 
@@ -34,25 +36,25 @@ def _arguments(on: bool, lobes: float, amplitude_m: float, torsion_row: int) -> 
 
 
 @inline
-def surface(pattern, angle, rate):
+def surface(pattern, angle):
     """
-    Return (s, ds/dt) of the surface at spin angle ``angle`` (rad) and rate ``rate`` (rad/s).
+    Return (s, kappa) of the surface at spin angle ``angle`` (rad): ds/dt = kappa omega.
 
-    (0, 0) when the pattern is off.
+    s (m) = A sin(n phi), kappa (m/rad) = A n cos(n phi); (0, 0) when the pattern is off.
     """
     if not pattern[0]:
         return 0.0, 0.0
     lobes, amplitude = pattern[1][LOBES], pattern[1][AMPLITUDE]
     phase = lobes * angle
-    return amplitude * np.sin(phase), amplitude * lobes * rate * np.cos(phase)
+    return amplitude * np.sin(phase), amplitude * lobes * np.cos(phase)
 
 
 @inline
-def surface_at(pattern, displacement_t, i, rate):
-    """Return (s, ds/dt) of member i, its bit's twist read in displacement_t (n_dofs, m)."""
+def surface_at(pattern, displacement_t, i):
+    """Return (s, kappa) of member i, its bit's twist read in displacement_t (n_dofs, m)."""
     if not pattern[0]:
         return 0.0, 0.0
-    return surface(pattern, pattern[2][0] + displacement_t[pattern[3][0], i], rate)
+    return surface(pattern, pattern[2][0] + displacement_t[pattern[3][0], i])
 
 
 class LobedBottom:

@@ -276,14 +276,13 @@ def update(iteration, force_t, radial, in_contact, tangent, touching, theta_x_ra
         g = min(i, germ.shape[0] - 1)
         k = min(i, law.shape[0] - 1)
         if bit_rock:
-            # The lobes: the surface lies s below the mean bottom and moves at ds/dt.
-            height, height_rate = surface_at(pattern, displacement_t, i, omega)
+            # The lobes: the surface lies s below the mean bottom and moves at kappa omega.
+            height, kappa = surface_at(pattern, displacement_t, i)
             x0, x1, f0, f1, lifted, j00, j01, j10, j11, solved, robust = _solve_bit(
-                linear0 - height_rate, linear1, flexibilities[i], rop[i] - height_rate, omega,
-                touch[i] + GAMMA / (BETA * dt) * height - height_rate, slope, gdt,
-                static_force, germ[g, 0, 0], germ[g, 0, 1], germ[g, 1, 1], random, law[k],
-                fade_speed[k])
-            x0 += height_rate
+                linear0, linear1, flexibilities[i], rop[i], omega,
+                touch[i] + GAMMA / (BETA * dt) * height, slope, gdt, static_force,
+                germ[g, 0, 0], germ[g, 0, 1], germ[g, 1, 1], random, law[k], fade_speed[k],
+                kappa)
             robust_used |= robust
         else:
             x0, x1, f0, f1 = linear0, linear1, static_force, 0.0
@@ -460,17 +459,23 @@ def _woodbury(i, in_contact, tangent, n_nodes, dt2, local_directions, local_resp
 
 @inline
 def _solve_bit(linear0, linear1, h, start0, start1, touch, slope, gdt, static_force, g11, g12,
-               g22, random, law, fade_speed):
+               g22, random, law, fade_speed, kappa):
     """
     Solve x = linear + gamma dt H (F(x) - F_c) for one member (NewmarkIntegrator._solve_bit).
 
     One Newton step from the iterate's velocities kept where it stays on the law's cutting
     branch (ROP > 0: Eq. 25-26 read at a negative ROP, a bit rising while it presses a
     compliant rock, give a torque that drives the bit, +2.2 MN m at a member's rebound in
-    the envelope sweep), else the bracketed solve of :mod:`bit_equation`. Returns (x0, x1,
-    F0, F1, lifted, J00, J01, J10, J11, solved, robust).
+    the envelope sweep), else the bracketed solve of :mod:`bit_equation`. On a lobed bottom
+    whose surface moves at kappa omega the law holds for the ROP relative to it,
+    x0 - kappa x1 (its Jacobian taken with it); ``touch`` is the absolute end-of-step ROP
+    that puts the bit on the surface. Returns (x0, x1, F0, F1, lifted, J00, J01, J10, J11,
+    solved, robust).
     """
-    f, t, j00, j01, j10, j11 = law_point(start0, start1, g11, g12, g22, random, law)
+    f, t, j00, j01, j10, j11 = law_point(start0 - kappa * start1, start1, g11, g12, g22,
+                                         random, law)
+    j01 -= kappa * j00                   # d/d omega of F(x0 - kappa x1, x1)
+    j11 -= kappa * j10
     lifted = f >= 0.0
     if lifted:
         f = t = j00 = j01 = j10 = j11 = 0.0
@@ -488,26 +493,28 @@ def _solve_bit(linear0, linear1, h, start0, start1, touch, slope, gdt, static_fo
     x0, x1 = start0 - s0, start1 - s1
     c0 = f - (j00 * s0 + j01 * s1)
     c1 = t - (j10 * s0 + j11 * s1)
-    safe = (np.sign(x0) == np.sign(start0) and np.sign(x1) == np.sign(start1)
-            and abs(s0) <= 0.5 * abs(start0) and not lifted and c0 < 0 and x0 > touch
-            and x0 > 0 and x1 > 0)
+    relative, start_relative = x0 - kappa * x1, start0 - kappa * start1
+    safe = (np.sign(relative) == np.sign(start_relative) and np.sign(x1) == np.sign(start1)
+            and abs(start_relative - relative) <= 0.5 * abs(start_relative) and not lifted
+            and c0 < 0 and x0 > touch and relative > 0 and x1 > 0)
     if safe and slope > 0.0:              # on the cutting branch, beyond the rock's spring
         safe = x0 > touch - slope * c0
     if safe and x1 >= fade_speed:                           # where the torque may fade
-        mean_force = law_point(x0, x1, 1.0, 0.0, 1.0, False, law)[0]
+        mean_force = law_point(relative, x1, 1.0, 0.0, 1.0, False, law)[0]
         threshold = (law[2] * np.sqrt(x1 * x1 + law[5] * law[5]) - law[0]) / law[1]
         safe = mean_force < minimum(threshold, -TORQUE_FADE_FORCE_N)
     if safe:
         return x0, x1, c0, c1, False, j00, j01, j10, j11, True, 0
     c_0, c_1 = gdt * h[0, 0], gdt * h[1, 1]
     b0, b1 = linear0 - c_0 * static_force, linear1 - c_1 * 0.0
-    if not b0 > maximum(touch, cutting_rate(0.0, b1, law)):
+    if not b0 - kappa * b1 > maximum(touch - kappa * b1, cutting_rate(0.0, b1, law)):
         # A bit that cannot reach the rock (or outruns the law's cut at zero force) at the
         # speed it has without a rock torque is free: F = 0, omega = b2, no search.
         rop, omega, f1, f2 = b0, b1, 0.0, 0.0
     else:
         rop, omega, f1, f2, _, _ = solve_one(b0, b1, c_0, c_1, touch, slope, g11, g12, g22,
-                                             random, start1, law)
+                                             random, start1, law, kappa)
+        rop += kappa * omega                                     # absolute again
     free = f1 >= 0.0
     if free:                      # the Jacobian of a guarded member is the law's at the iterate
         j00 = j01 = j10 = j11 = 0.0
@@ -548,7 +555,7 @@ def finish(d_pred, v_pred, a, cd, cv, bit_axial_row, hole, bit_force, bit_torque
             bit_u += d * bit_axial_row[j]
             twist += d * bit_rows[1, j]
             ok = ok and np.isfinite(d) and np.isfinite(v)
-        height = surface(pattern, pattern[2][0] + twist, 0.0)[0]
+        height = surface(pattern, pattern[2][0] + twist)[0]
         hole_out[i] = maximum(hole[i], bit_u + compliance * minimum(bit_force[i], 0.0) - height)
         finite[i] = ok
         converged[i] = ok and bit_ok[i] and error[i] <= tolerance
