@@ -21,7 +21,7 @@ TorsionTop = Literal['driven', 'free']
 TorsionBit = Literal['free', 'fixed']
 LateralEnd = Literal['clamped', 'pinned', 'free']
 CoriolisForm = Literal['gyroscopic', 'paper']
-InitialShape = Literal['first_lateral_mode', 'half_sine']
+InitialShape = Literal['first_lateral_mode', 'half_sine', 'bha_half_sine']
 
 
 class ConfigValueError(ValueError):
@@ -700,11 +700,14 @@ class DrillStringConfig:
                         'a solid section cannot carry the mud flow '
                         '(fluid.inlet_speed_m_per_s > 0)')
         clearance = max((hole - s.outer_diameter_m) / 2 for s in self.sections)
+        where = 'largest clearance'
+        if self.initial_conditions.lateral_shape == 'bha_half_sine':
+            clearance, where = (hole - self.sections[-1].outer_diameter_m) / 2, 'BHA clearance'
         if self.physics.contact and self.initial_conditions.lateral_deflection_m > clearance:
             raise ConfigValueError(
                 'initial_conditions.lateral_deflection_m',
                 f'{self.initial_conditions.lateral_deflection_m:g} m does not fit in the hole '
-                f'(largest clearance {clearance:g} m): the string would start inside the wall')
+                f'({where} {clearance:g} m): the string would start inside the wall')
         imbalance = self.excitation.imbalance
         if imbalance.enabled and imbalance.position_m > length:
             raise ConfigValueError(

@@ -661,12 +661,17 @@ class Simulator:
             if config.initial_conditions.lateral_shape == 'first_lateral_mode':
                 shape = np.zeros(bending.shapes.shape[1])
                 shape[0] = 1.0
-            else:                                              # half sine over the string
+            else:                    # half sine over the string, or over the BHA only
                 x = system.model.mesh.node_x_m
-                length = x[-1]
+                start = 0.0
+                if config.initial_conditions.lateral_shape == 'bha_half_sine':
+                    start = x[-1] - config.sections[-1].length_m
+                length = x[-1] - start
+                inside = x >= start - 1e-9
+                phase = math.pi * (x - start) / length
                 target = np.zeros(2 * nodes)
-                target[:nodes] = np.sin(math.pi * x / length)
-                target[nodes:] = (math.pi / length) * np.cos(math.pi * x / length)
+                target[:nodes] = np.where(inside, np.sin(phase), 0.0)
+                target[nodes:] = np.where(inside, (math.pi / length) * np.cos(phase), 0.0)
                 mass = system.model.total_mass[np.ix_(system.permutation[bending.rows],
                                                       system.permutation[bending.rows])]
                 shape = bending.shapes.T @ (mass @ target)
