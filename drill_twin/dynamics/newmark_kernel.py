@@ -545,7 +545,6 @@ def finish(d_pred, v_pred, a, cd, cv, bit_axial_row, hole, bit_force, bit_torque
         final_full[axial_index, i] += change0
         final_full[torsion_index, i] += change1
         bit_u = 0.0
-        twist = 0.0
         ok = True
         for j in range(n):
             final_modal[j, i] += change0 * bit_rows[0, j] + change1 * bit_rows[1, j]
@@ -553,9 +552,13 @@ def finish(d_pred, v_pred, a, cd, cv, bit_axial_row, hole, bit_force, bit_torque
             v = v_pred[j, i] + cv * a[j, i]
             q[i, j], q_rate[i, j], q_acceleration[i, j] = d, v, a[j, i]
             bit_u += d * bit_axial_row[j]
-            twist += d * bit_rows[1, j]
             ok = ok and np.isfinite(d) and np.isfinite(v)
-        height = surface(pattern, pattern[2][0] + twist)[0]
+        height = 0.0
+        if pattern[0]:
+            twist = 0.0
+            for j in range(n):
+                twist += q[i, j] * bit_rows[1, j]
+            height = surface(pattern, pattern[2][0] + twist)[0]
         hole_out[i] = maximum(hole[i], bit_u + compliance * minimum(bit_force[i], 0.0) - height)
         finite[i] = ok
         converged[i] = ok and bit_ok[i] and error[i] <= tolerance

@@ -562,6 +562,8 @@ class Simulator:
 
     def on_bottom(self) -> np.ndarray:
         """(m,) True where the bit is on the hole bottom (within 1 um; on the lobes' surface)."""
+        if self.integrator.forces.bottom_pattern is None:
+            return self._bit_u() >= self.hole_u() - ON_BOTTOM_TOLERANCE_M
         height = self.integrator.bottom_surface(self.state)[0]
         return self._bit_u() >= self.hole_u() + height - ON_BOTTOM_TOLERANCE_M
 
