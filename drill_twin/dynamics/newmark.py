@@ -66,12 +66,13 @@ import numpy as np
 import scipy.linalg as la
 
 from drill_twin.dynamics import newmark_kernel as compiled
-from drill_twin.dynamics.bottom_hole_pattern import LobedBottom
 from drill_twin.dynamics.bit_rock import fade_speeds
+from drill_twin.dynamics.bottom_hole_pattern import LobedBottom
 from drill_twin.dynamics.contact import ContactForces
 from drill_twin.dynamics.forces import ForceEvaluation, Kinematics, NonlinearForces
 from drill_twin.dynamics.newmark_kernel import (BETA, GAMMA, VELOCITY_SCALE,  # noqa
                                                 VERIFY_EVERY)
+from drill_twin.dynamics.step_operands import StepOperands, make_step_operands
 
 ON_BOTTOM_TOLERANCE_M = 1e-6
 """The bit counts as on bottom when it is within this of the hole bottom (m)."""
@@ -273,6 +274,7 @@ class NewmarkIntegrator:
         self._active = None               # (contact flags, lift-off flags) at the last step
         self._before_step = None          # the bookkeeping before the last step
         self._flat_surface = None         # bottom_surface's zeros without a lobed bottom
+        self._operands_of = None          # (its tuples, the step's StepOperands)
 
     # -- initial state -------------------------------------------------------------------
     def initial_state(self, q: np.ndarray, q_rate: np.ndarray, top_speed_rad_per_s: float,
@@ -485,8 +487,8 @@ class NewmarkIntegrator:
             (float(top_speed_rad_per_s), float(top_acceleration), hooks,
              self.max_iterations),
             (have_rate, have_active, self._rate, clock, previous_contact, previous_lifted),
-            self._forces_arguments, self._step_operators, work.arrays, final.arrays,
-            (q, q_rate, q_acceleration, hole, finite, converged), work.compact)
+            self._operands(work), final.arrays,
+            (q, q_rate, q_acceleration, hole, finite, converged))
         evaluation = final.evaluation(touching)
         self._active = (final.contact.copy(), final.bit_lifted.copy())
         error = work.error.copy()
@@ -518,6 +520,14 @@ class NewmarkIntegrator:
                                top_acceleration, hook_load_n, hole)
         return new_state, StepResult(success, converged, finite, iterations, error, message,
                                      evaluation)
+
+    def _operands(self, work: compiled.StepWork) -> StepOperands:
+        """Return the step's operands object, made again when one of its tuples changed."""
+        parts = (self._forces_arguments, self._step_operators, work.arrays, work.compact)
+        made = self._operands_of
+        if made is None or any(a is not b for a, b in zip(made[0], parts)):
+            made = self._operands_of = (parts, make_step_operands(*parts))
+        return made[1]
 
     def _step_work(self, members: int) -> compiled.StepWork:
         """Return the work arrays of a step of ``members`` (made again only when m changes)."""

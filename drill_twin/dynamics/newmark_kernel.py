@@ -567,12 +567,14 @@ def finish(d_pred, v_pred, a, cd, cv, bit_axial_row, hole, bit_force, bit_torque
 
 
 @kernel
-def step(state, step_inputs, bookkeeping, forces, operators, work, final, out, compact):
+def step(state, step_inputs, bookkeeping, operands, final, out):
     """
     One Newmark step of m members.
 
     Begin, then (fields, forces of the string, update) until every member is done or
-    max_iterations, then finish. Arguments are tuples:
+    max_iterations, then finish. Arguments are tuples, but for ``operands``
+    (:class:`step_operands.StepOperands`, whose fields forces, operators, work and compact are
+    the tuples below, unboxed as one pointer):
 
     state: (q, q_rate, q_acceleration (m, n) members first, hole (m,), has_hole);
     step_inputs: (top_speed, top_acceleration, hook loads (1 or m,) (N), max_iterations);
@@ -600,6 +602,8 @@ def step(state, step_inputs, bookkeeping, forces, operators, work, final, out, c
     Returns (iterations, iterations in which a member needed the bracketed bit solve,
     members converged, whether any node of the final evaluation touches the wall).
     """
+    forces, operators = operands.forces, operands.operators
+    work, compact = operands.work, operands.compact
     q, q_rate, q_acceleration, hole_in, has_hole = state
     top_speed, top_acceleration, hooks, max_iterations = step_inputs
     have_rate, have_active, rate, clock, previous_contact, previous_lifted = bookkeeping
