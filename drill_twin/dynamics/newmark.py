@@ -274,7 +274,7 @@ class NewmarkIntegrator:
         self._active = None               # (contact flags, lift-off flags) at the last step
         self._before_step = None          # the bookkeeping before the last step
         self._flat_surface = None         # bottom_surface's zeros without a lobed bottom
-        self._operands_of = None          # (its tuples, the step's StepOperands)
+        self._operands_of = None          # (operators, work, forces' tuples, StepOperands)
 
     # -- initial state -------------------------------------------------------------------
     def initial_state(self, q: np.ndarray, q_rate: np.ndarray, top_speed_rad_per_s: float,
@@ -450,7 +450,7 @@ class NewmarkIntegrator:
         top_acceleration = (top_speed_rad_per_s - state.top_speed_rad_per_s) / dt
         top_angle = state.top_angle_rad + 0.5 * dt * (state.top_speed_rad_per_s
                                                       + top_speed_rad_per_s)
-        if np.ndim(hook_load_n) == 0:
+        if type(hook_load_n) is float or np.ndim(hook_load_n) == 0:
             hooks = self._hook_scalar
             hooks[0] = hook_load_n
         else:
@@ -523,11 +523,13 @@ class NewmarkIntegrator:
 
     def _operands(self, work: compiled.StepWork) -> StepOperands:
         """Return the step's operands object, made again when one of its tuples changed."""
-        parts = (self._forces_arguments, self._step_operators, work.arrays, work.compact)
         made = self._operands_of
-        if made is None or any(a is not b for a, b in zip(made[0], parts)):
-            made = self._operands_of = (parts, make_step_operands(*parts))
-        return made[1]
+        if (made is None or made[0] is not self._step_operators or made[1] is not work
+                or made[2] is not self._forces_arguments):
+            parts = (self._forces_arguments, self._step_operators, work.arrays, work.compact)
+            made = self._operands_of = (self._step_operators, work, self._forces_arguments,
+                                        make_step_operands(*parts))
+        return made[3]
 
     def _step_work(self, members: int) -> compiled.StepWork:
         """Return the work arrays of a step of ``members`` (made again only when m changes)."""
