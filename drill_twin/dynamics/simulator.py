@@ -597,7 +597,7 @@ class Simulator:
         fields, spins = observer.fields, observer.spins
         # Torque balance of the whole string about x (the rigid rotation costs no strain).
         top_torque = (acceleration[:, observer.mass] + rate[:, observer.damping]
-                      - np.sum(forces.full[:keep, self.system.field(1)], axis=1))
+                      - forces.full[:keep, self.system.field(1)].sum(axis=1))
         bit_u = q[:, observer.bit_u]
         velocity = forces.rop_m_per_s
         omega = forces.bit_speed_rad_per_s

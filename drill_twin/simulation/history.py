@@ -108,8 +108,8 @@ class History:
         self.time_s[k] = observation.time_s
         for name, attribute in BIT_CHANNELS.items():
             self.channels[name][:, k] = getattr(observation, attribute)
-        self.channels['contact_nodes'][:, k] = np.sum(observation.in_contact, axis=1)
-        self.channels['max_contact_force_n'][:, k] = np.max(observation.contact_force_n, axis=1)
+        self.channels['contact_nodes'][:, k] = observation.in_contact.sum(axis=1)
+        self.channels['max_contact_force_n'][:, k] = observation.contact_force_n.max(axis=1)
         for name, attribute in SHARED_CHANNELS.items():
             self.shared[name][k] = getattr(observation, attribute)
         self.displacement[..., k] = observation.station_displacement_m
