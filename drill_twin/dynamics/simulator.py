@@ -587,11 +587,16 @@ class Simulator:
             observer = self._observer = _Observer(self.system)
         top, top_acceleration = state.top_speed_rad_per_s, state.top_acceleration_rad_per_s2
         keep = self.members if detailed is None else min(int(detailed), self.members)
-        # The reduced rows of every observed quantity, applied once per state vector.
-        q = observer.rows(state.q)
-        rate = observer.rows(state.q_rate[:keep])
+        # The reduced rows of every observed quantity, applied once per state vector (in
+        # one product when every member is detailed).
+        if keep == self.members:
+            rows = observer.rows(np.concatenate((state.q, state.q_rate, state.q_acceleration)))
+            q, rate, acceleration = rows[:keep], rows[keep:2 * keep], rows[2 * keep:]
+        else:
+            q = observer.rows(state.q)
+            rate = observer.rows(state.q_rate[:keep])
+            acceleration = observer.rows(state.q_acceleration[:keep])
         rate += top * observer.driven
-        acceleration = observer.rows(state.q_acceleration[:keep])
         acceleration += top_acceleration * observer.driven
         stations = len(self.system.stations)
         fields, spins = observer.fields, observer.spins
