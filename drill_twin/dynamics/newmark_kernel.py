@@ -195,9 +195,10 @@ def update(iteration, force_t, radial, in_contact, tangent, touching, theta_x_ra
     arrays' layout); the per-member work (the bit, the decisions) runs member by member.
     scratch (6, m), flexibilities (m, 2, 2), responses (m, n, 2) (S^-1 B of members on the
     wall), on_wall (m,): work arrays. pattern: the lobed hole bottom's operands
-    (bottom_hole_pattern.LobedBottom.arguments): the bit equation is solved in the frame of
-    the surface under the bit, at the iterate's angle and spin rate. Returns (members still
-    active, 1 if any member needed the bracketed bit solve).
+    (bottom_hole_pattern.LobedBottom.arguments): the bit equation is solved relative to the
+    surface under the bit, taken at the iterate's angle and moving at kappa omega with the
+    solved speed omega. Returns (members still active, 1 if any member needed the bracketed
+    bit solve).
     """
     n, members = a.shape
     shapes_t = (shapes_t_axial, shapes_t_torsion, shapes_t_y, shapes_t_z)
