@@ -197,4 +197,4 @@ class MemberState:
         pattern = integrator.forces.bottom_pattern
         if pattern is None:
             return 0.0
-        return pattern.height_m(self.simulator.state.top_angle_rad + q @ integrator.bit_rows[1])
+        return pattern.height_m(integrator.bit_angle_rad(q, self.simulator.state.top_angle_rad))

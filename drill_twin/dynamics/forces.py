@@ -14,9 +14,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from drill_twin.dynamics.bit_rock import BitRockLaw
+from drill_twin.dynamics.bottom_hole_pattern import LobedBottom
 from drill_twin.dynamics.compiled import kernel
 from drill_twin.dynamics.contact import ContactForces, accumulate_contact
-from drill_twin.dynamics.bottom_hole_pattern import LobedBottom
 from drill_twin.dynamics.excitation import ImbalanceForce, accumulate_imbalance
 from drill_twin.dynamics.finite_strain import (WORK_ROWS, StrainOperators,
                                                accumulate_finite_strain)

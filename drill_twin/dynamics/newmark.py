@@ -368,9 +368,13 @@ class NewmarkIntegrator:
                 zeros.flags.writeable = False
                 self._flat_surface = (zeros, zeros)
             return self._flat_surface
-        angle = state.top_angle_rad + state.q @ self.bit_rows[1]
+        angle = self.bit_angle_rad(state.q, state.top_angle_rad)
         rate = np.zeros(members) if omega is None else omega
         return pattern.height_m(angle), pattern.height_rate_m_per_s(angle, rate)
+
+    def bit_angle_rad(self, q: np.ndarray, top_angle_rad: float) -> np.ndarray:
+        """Return the bits' spin angles (top-drive angle plus twist) of coordinates q (m, n)."""
+        return top_angle_rad + q @ self.bit_rows[1]
 
     @property
     def germ(self) -> np.ndarray | None:

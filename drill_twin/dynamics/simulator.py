@@ -556,16 +556,18 @@ class Simulator:
         """
         omega = self.last.bit_speed_rad_per_s if self.last is not None else None
         height, height_rate = self.integrator.bottom_surface(self.state, omega)
-        on_bottom = self._bit_u() >= self.hole_u() + height - ON_BOTTOM_TOLERANCE_M
-        return np.where(on_bottom, np.maximum(bit_axial_velocity_m_per_s - height_rate, 0.0),
-                        0.0)
+        return np.where(self._on_surface(self._bit_u(), height),
+                        np.maximum(bit_axial_velocity_m_per_s - height_rate, 0.0), 0.0)
 
     def on_bottom(self) -> np.ndarray:
         """(m,) True where the bit is on the hole bottom (within 1 um; on the lobes' surface)."""
-        if self.integrator.forces.bottom_pattern is None:
-            return self._bit_u() >= self.hole_u() - ON_BOTTOM_TOLERANCE_M
-        height = self.integrator.bottom_surface(self.state)[0]
-        return self._bit_u() >= self.hole_u() + height - ON_BOTTOM_TOLERANCE_M
+        if self.integrator.forces.bottom_pattern is None:         # (the time loop's case)
+            return self._on_surface(self._bit_u(), 0.0)
+        return self._on_surface(self._bit_u(), self.integrator.bottom_surface(self.state)[0])
+
+    def _on_surface(self, bit_u, height) -> np.ndarray:
+        """Whether bits at u_bit (m,) are on the rock: at most 1 um above hole + s (m)."""
+        return bit_u >= self.hole_u() + height - ON_BOTTOM_TOLERANCE_M
 
     def _bit_u(self) -> np.ndarray:
         return self.state.q @ self.integrator.bit_axial_row
@@ -607,7 +609,7 @@ class Simulator:
         velocity = forces.rop_m_per_s
         omega = forces.bit_speed_rad_per_s
         height, height_rate = self.integrator.bottom_surface(state, omega)
-        on_bottom = bit_u >= self.hole_u() + height - ON_BOTTOM_TOLERANCE_M
+        on_bottom = self._on_surface(bit_u, height)
         # The hole deepens (relative to the surface of a lobed bottom, which moves).
         rop = np.where(on_bottom, np.maximum(velocity - height_rate, 0.0), 0.0)
         length = self.system.model.mesh.total_length_m
