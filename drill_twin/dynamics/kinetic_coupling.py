@@ -17,7 +17,8 @@ right-handed spin, the printed sign would stiffen backward whirl instead of forw
 
 The kernel runs Gauss point by Gauss point with the members of the batch as the inner (vector)
 axis: each point interpolates its rotations and their rates from its element's nodes (two or
-four non-zeros of the dense interpolation rows) and scatters its forces straight back.
+four non-zeros of the dense interpolation rows, in padded rows: :mod:`padded_rows`) and
+scatters its forces straight back.
 """
 from __future__ import annotations
 
@@ -26,14 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from drill_twin.dynamics.compiled import VECTOR_BATCH, inline, kernel
-
-
-def _compressed_rows(dense: np.ndarray):
-    """(pointer, column, value) of the non-zeros of a dense (P, k) matrix, row by row."""
-    row, column = np.nonzero(dense)
-    pointer = np.searchsorted(row, np.arange(dense.shape[0] + 1))
-    return (pointer.astype(np.int64), column.astype(np.int64),
-            np.ascontiguousarray(dense[row, column], dtype=float))
+from drill_twin.dynamics.padded_rows import padded_rows_of
 
 
 @dataclass(frozen=True)
@@ -41,10 +35,11 @@ class CouplingOperators:
     """
     The kinetic-coupling data of a reduced system, in the kernel's layout.
 
-    theta_x, theta_y, theta_z: (pointer, column, value) rows giving each rotation at the P
-    Gauss points from the torsional field, the bending_z block (w, theta_y) and the
-    bending_y block (v, theta_z); torsion_row, bending_y_row, bending_z_row: first field-wise
-    DOF of each; scale: rho I_p times the Gauss weight (kg m^2), (P,).
+    theta_x, theta_y, theta_z: (column, value, length) (:mod:`padded_rows`), the rows
+    giving each rotation at the P Gauss points from the torsional field, the bending_z block
+    (w, theta_y) and the bending_y block (v, theta_z); torsion_row, bending_y_row,
+    bending_z_row: first field-wise DOF of each; scale: rho I_p times the Gauss weight
+    (kg m^2), (P,).
     """
 
     theta_x: tuple
@@ -58,9 +53,9 @@ class CouplingOperators:
     @classmethod
     def of(cls, system) -> 'CouplingOperators':
         b = system.blocks
-        return cls(theta_x=_compressed_rows(system.theta_x_gauss),
-                   theta_y=_compressed_rows(system.theta_y_gauss),
-                   theta_z=_compressed_rows(system.theta_z_gauss),
+        return cls(theta_x=padded_rows_of(system.theta_x_gauss),
+                   theta_y=padded_rows_of(system.theta_y_gauss),
+                   theta_z=padded_rows_of(system.theta_z_gauss),
                    torsion_row=b['torsional'].rows.start, bending_y_row=b['bending_y'].rows.start,
                    bending_z_row=b['bending_z'].rows.start,
                    scale=np.ascontiguousarray(_sign(system) * system.polar_inertia_density
@@ -95,8 +90,8 @@ def _point_forces(scale, rate_x, acc_x, rate_z, acc_z, theta_y, rate_y):
 @kernel
 def accumulate_kinetic_coupling(displacement_t, theta_x_rate_t, theta_x_acceleration_t,
                                 bending_y_rate_t, bending_y_acceleration_t, bending_z_rate_t,
-                                x_pointer, x_column, x_value, y_pointer, y_column, y_value,
-                                z_pointer, z_column, z_value, torsion_row, bending_y_row,
+                                x_column, x_value, x_length, y_column, y_value, y_length,
+                                z_column, z_value, z_length, torsion_row, bending_y_row,
                                 bending_z_row, scale, work, force_t):
     """
     force_t += f_ke, members last.
@@ -106,27 +101,28 @@ def accumulate_kinetic_coupling(displacement_t, theta_x_rate_t, theta_x_accelera
     member.
     """
     members = displacement_t.shape[1]
+    x_width, y_width, z_width = x_column.shape[1], y_column.shape[1], z_column.shape[1]
     if members < VECTOR_BATCH:
         for i in range(members):
             for p in range(scale.shape[0]):
                 rate_x = acc_x = rate_z = acc_z = theta_y = rate_y = 0.0
-                for j in range(x_pointer[p], x_pointer[p + 1]):
-                    rate_x += x_value[j] * theta_x_rate_t[x_column[j], i]
-                    acc_x += x_value[j] * theta_x_acceleration_t[x_column[j], i]
-                for j in range(z_pointer[p], z_pointer[p + 1]):
-                    rate_z += z_value[j] * bending_y_rate_t[z_column[j], i]
-                    acc_z += z_value[j] * bending_y_acceleration_t[z_column[j], i]
-                for j in range(y_pointer[p], y_pointer[p + 1]):
-                    theta_y += y_value[j] * displacement_t[bending_z_row + y_column[j], i]
-                    rate_y += y_value[j] * bending_z_rate_t[y_column[j], i]
+                for j in range(x_width):
+                    rate_x += x_value[p, j] * theta_x_rate_t[x_column[p, j], i]
+                    acc_x += x_value[p, j] * theta_x_acceleration_t[x_column[p, j], i]
+                for j in range(z_width):
+                    rate_z += z_value[p, j] * bending_y_rate_t[z_column[p, j], i]
+                    acc_z += z_value[p, j] * bending_y_acceleration_t[z_column[p, j], i]
+                for j in range(y_width):
+                    theta_y += y_value[p, j] * displacement_t[bending_z_row + y_column[p, j], i]
+                    rate_y += y_value[p, j] * bending_z_rate_t[y_column[p, j], i]
                 fx, fy, fz = _point_forces(scale[p], rate_x, acc_x, rate_z, acc_z, theta_y,
                                            rate_y)
-                for j in range(x_pointer[p], x_pointer[p + 1]):
-                    force_t[torsion_row + x_column[j], i] += x_value[j] * fx
-                for j in range(y_pointer[p], y_pointer[p + 1]):
-                    force_t[bending_z_row + y_column[j], i] += y_value[j] * fy
-                for j in range(z_pointer[p], z_pointer[p + 1]):
-                    force_t[bending_y_row + z_column[j], i] += z_value[j] * fz
+                for j in range(x_width):
+                    force_t[torsion_row + x_column[p, j], i] += x_value[p, j] * fx
+                for j in range(y_width):
+                    force_t[bending_z_row + y_column[p, j], i] += y_value[p, j] * fy
+                for j in range(z_width):
+                    force_t[bending_y_row + z_column[p, j], i] += z_value[p, j] * fz
         return
     rate_x, acc_x, rate_z, acc_z, theta_y, rate_y = (work[0], work[1], work[2], work[3],
                                                      work[4], work[5])
@@ -139,18 +135,18 @@ def accumulate_kinetic_coupling(displacement_t, theta_x_rate_t, theta_x_accelera
             acc_z[i] = 0.0
             theta_y[i] = 0.0
             rate_y[i] = 0.0
-        for j in range(x_pointer[p], x_pointer[p + 1]):
-            column, value = x_column[j], x_value[j]
+        for j in range(x_length[p]):
+            column, value = x_column[p, j], x_value[p, j]
             for i in range(members):
                 rate_x[i] += value * theta_x_rate_t[column, i]
                 acc_x[i] += value * theta_x_acceleration_t[column, i]
-        for j in range(z_pointer[p], z_pointer[p + 1]):
-            column, value = z_column[j], z_value[j]
+        for j in range(z_length[p]):
+            column, value = z_column[p, j], z_value[p, j]
             for i in range(members):
                 rate_z[i] += value * bending_y_rate_t[column, i]
                 acc_z[i] += value * bending_y_acceleration_t[column, i]
-        for j in range(y_pointer[p], y_pointer[p + 1]):
-            column, value = y_column[j], y_value[j]
+        for j in range(y_length[p]):
+            column, value = y_column[p, j], y_value[p, j]
             for i in range(members):
                 theta_y[i] += value * displacement_t[bending_z_row + column, i]
                 rate_y[i] += value * bending_z_rate_t[column, i]
@@ -159,16 +155,16 @@ def accumulate_kinetic_coupling(displacement_t, theta_x_rate_t, theta_x_accelera
             force_x[i], force_y[i], force_z[i] = _point_forces(s, rate_x[i], acc_x[i],
                                                                rate_z[i], acc_z[i], theta_y[i],
                                                                rate_y[i])
-        for j in range(x_pointer[p], x_pointer[p + 1]):
-            column, value = torsion_row + x_column[j], x_value[j]
+        for j in range(x_length[p]):
+            column, value = torsion_row + x_column[p, j], x_value[p, j]
             for i in range(members):
                 force_t[column, i] += value * force_x[i]
-        for j in range(y_pointer[p], y_pointer[p + 1]):
-            column, value = bending_z_row + y_column[j], y_value[j]
+        for j in range(y_length[p]):
+            column, value = bending_z_row + y_column[p, j], y_value[p, j]
             for i in range(members):
                 force_t[column, i] += value * force_y[i]
-        for j in range(z_pointer[p], z_pointer[p + 1]):
-            column, value = bending_y_row + z_column[j], z_value[j]
+        for j in range(z_length[p]):
+            column, value = bending_y_row + z_column[p, j], z_value[p, j]
             for i in range(members):
                 force_t[column, i] += value * force_z[i]
 
