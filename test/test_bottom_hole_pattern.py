@@ -145,10 +145,32 @@ def test_high_lobes_bounce_the_bit_and_every_bounce_lands():
     no lift-off). The hole only deepens.
     """
     simulator = Simulator(_config(5e-3, spin_rad_per_s=5.2))
-    depth = []
+    depth, flags = [], []
     for _ in range(int(round(10.0 / simulator.dt))):
-        simulator.step()
+        result = simulator.step()
         depth.append(simulator.hole_depth_m[0])
+        # The step kernel's on-bottom flag (what the landing count takes) is the state's test.
+        assert result.on_bottom[0] == simulator.on_bottom()[0]
+        flags.append(result.on_bottom[0])
     assert simulator.lift_off_count[0] >= 5
     assert simulator.landing_count[0] >= simulator.lift_off_count[0] - 1
+    assert simulator.landing_count[0] == np.count_nonzero(np.diff(np.array(flags, int)) == 1)
     assert np.all(np.diff(depth) >= 0.0)
+
+
+def test_the_step_reports_the_bit_on_bottom_as_the_state_does_on_a_flat_bottom():
+    """A bit picked up off a flat bottom and set down again: the flag follows, it lands."""
+    config = _config(5e-3, excitation={'bottom_hole_pattern': {'enabled': False}})
+    simulator = Simulator(config)
+    hook = simulator.hook_load_command_n
+    flags = []
+    for load_change_n, seconds in ((0.0, 0.5), (150e3, 2.0), (-100e3, 4.0)):
+        simulator.set_hook_load(hook + load_change_n)
+        for _ in range(int(round(seconds / simulator.dt))):
+            result = simulator.step()
+            assert result.on_bottom[0] == simulator.on_bottom()[0]
+            flags.append(result.on_bottom[0])
+    flags = np.array(flags)
+    assert flags[0] and not flags.all() and flags[-1]
+    landings = np.count_nonzero(np.diff(flags.astype(int)) == 1)
+    assert landings >= 1 and simulator.landing_count[0] == landings

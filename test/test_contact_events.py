@@ -46,6 +46,19 @@ def test_a_chattering_contact_is_one_episode():
     assert event_rate_per_s([0, 0], episodes.count, 0.08).tolist() == [25.0, 0.0]
 
 
+def test_an_untouched_step_changes_nothing_and_is_refused_while_an_episode_is_open():
+    episodes = ContactEpisodes(1, np.array([0.0, 800.0]), release_m=1e-3)
+    gap = np.array([[-0.05, 2e-4]])
+    episodes.update(0.0, gap, 1e8 * np.maximum(gap, 0.0))
+    assert episodes.any_open and episodes.opened
+    with pytest.raises(ValueError, match='open'):
+        episodes.update_untouched()                    # the open episode needs its gap
+    episodes.update(0.01, np.full((1, 2), -0.05), np.zeros((1, 2)))
+    assert not episodes.any_open and episodes.closed
+    episodes.update_untouched()
+    assert (episodes.opened, episodes.closed, episodes.count.tolist()) == ([], [], [1])
+
+
 def test_a_bit_touching_without_reload_is_one_lift_off():
     episodes = LiftOffEpisodes(1, release_n=1e3)
     sequence = [(False, -1e5), (True, 0.0), (False, -200.0), (True, 0.0), (False, -5e3),

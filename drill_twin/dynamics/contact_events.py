@@ -112,6 +112,17 @@ class ContactEpisodes:
         """Episodes still in progress."""
         return list(self._open.values())
 
+    @property
+    def any_open(self) -> bool:
+        """Whether an episode is in progress."""
+        return bool(self._open)
+
+    def update_untouched(self) -> None:
+        """Feed a step in which no node touches the wall, with no episode open: nothing happens."""
+        if self._open:
+            raise ValueError('episodes are open: feed the step with update_from_contact')
+        self.opened, self.closed = [], []
+
     def update(self, time_s: float, gap_m: np.ndarray, radial_force_n: np.ndarray) -> None:
         """Feed one step: gap r - c and radial wall force, both (m, n_nodes)."""
         gap = np.asarray(gap_m, dtype=float)
@@ -205,7 +216,7 @@ class LiftOffEpisodes:
     def update(self, lifted: np.ndarray, weight_on_bit_n: np.ndarray) -> None:
         """Feed one step: the bit's lifted flag and f_bit (N, < 0 in compression), (m,)."""
         lifted = np.asarray(lifted, dtype=bool)
-        if not self._any and not lifted.any():     # on the rock before and now, none opened
+        if not self._any and not np.count_nonzero(lifted):    # on the rock before and now
             return
         if not (lifted.any() or self.lifted.any()):
             self.opened = np.zeros(self.members, dtype=bool)

@@ -74,7 +74,7 @@ from drill_twin.dynamics.newmark_kernel import (BETA, GAMMA, VELOCITY_SCALE,  # 
                                                 VERIFY_EVERY)
 from drill_twin.dynamics.step_operands import StepOperands, make_step_operands
 
-ON_BOTTOM_TOLERANCE_M = 1e-6
+ON_BOTTOM_TOLERANCE_M = compiled.ON_BOTTOM_TOLERANCE_M
 """The bit counts as on bottom when it is within this of the hole bottom (m)."""
 
 
@@ -129,7 +129,10 @@ class StepResult:
     increment per member; message: why it failed ('' on success); forces: the forces of the
     final state (the bit's exactly, the others at each member's last evaluation).
     retries: (m,) sub-steps each member was integrated on after its full step failed (0 when
-    the full step worked; set by the Simulator, None from the integrator alone).
+    the full step worked; set by the Simulator, None from the integrator alone). on_bottom: (m,)
+    the bit on the rock at the step's end (within ON_BOTTOM_TOLERANCE_M of the surface under
+    it), as the step's kernel found it; None where a state was merged from other steps (the
+    Simulator then tests its state).
     """
 
     success: bool
@@ -140,6 +143,7 @@ class StepResult:
     message: str
     forces: ForceEvaluation
     retries: np.ndarray | None = None
+    on_bottom: np.ndarray | None = None
 
 
 @dataclass
@@ -479,6 +483,7 @@ class NewmarkIntegrator:
         hole = np.empty(members)
         finite = np.empty(members, dtype=bool)
         converged = np.empty(members, dtype=bool)
+        on_bottom = np.empty(members, dtype=bool)
         self.forces.strain_operators.set_top_angle(top_angle)   # printed_absolute's
         if self.forces.imbalance is not None:          # the angle its force turns with
             self.forces.imbalance.set_top_angle(top_angle)
@@ -492,7 +497,7 @@ class NewmarkIntegrator:
              self.max_iterations),
             (have_rate, have_active, self._rate, clock, previous_contact, previous_lifted),
             self._operands(work), final.arrays,
-            (q, q_rate, q_acceleration, hole, finite, converged))
+            (q, q_rate, q_acceleration, hole, finite, converged, on_bottom))
         evaluation = final.evaluation(touching)
         self._active = (final.contact.copy(), final.bit_lifted.copy())
         error = work.error.copy()
@@ -523,7 +528,7 @@ class NewmarkIntegrator:
         new_state = BatchState(time, q, q_rate, q_acceleration, top_angle, top_speed_rad_per_s,
                                top_acceleration, hook_load_n, hole)
         return new_state, StepResult(success, converged, finite, iterations, error, message,
-                                     evaluation)
+                                     evaluation, on_bottom=on_bottom)
 
     def _operands(self, work: compiled.StepWork) -> StepOperands:
         """Return the step's operands object, made again when one of its tuples changed."""

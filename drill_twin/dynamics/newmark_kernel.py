@@ -39,6 +39,8 @@ the later iterations run on the members still iterating only, so a step's extra 
 group's, not the batch's)."""
 VERIFY_SPACING = 3
 """Steps between the verifications of consecutive groups (8 groups fit in VERIFY_EVERY)."""
+ON_BOTTOM_TOLERANCE_M = 1e-6
+"""The bit counts as on bottom when it is within this of the hole bottom (m)."""
 
 
 class StepWork:
@@ -527,7 +529,7 @@ def _solve_bit(linear0, linear1, h, start0, start1, touch, slope, gdt, static_fo
 def finish(d_pred, v_pred, a, cd, cv, bit_axial_row, hole, bit_force, bit_torque, compliance,
            static_force, bit_rows, axial_index, torsion_index, final_full, final_modal,
            error, bit_ok, tolerance, q, q_rate, q_acceleration, hole_out, finite, converged,
-           pattern):
+           on_bottom, pattern):
     """
     Finish a step.
 
@@ -535,8 +537,9 @@ def finish(d_pred, v_pred, a, cd, cv, bit_axial_row, hole, bit_force, bit_torque
     m)), the new state members first (q, q_rate, q_acceleration (m, n), hole_out (m,): the hole
     only deepens, to where the bit ends less the depth -F1 / k by which it presses a compliant
     rock, ``compliance`` = 1 / k, 0 for a rigid one, and less the lobes' height s of a
-    ``pattern``'s surface under it: the hole is the mean bottom), finite and converged (m,).
-    Returns the number of members converged.
+    ``pattern``'s surface under it: the hole is the mean bottom), finite and converged (m,),
+    on_bottom (m,): the bit within ON_BOTTOM_TOLERANCE_M of the rock's surface under it (the
+    Simulator's on-bottom test). Returns the number of members converged.
     """
     n, members = a.shape
     count = 0
@@ -561,6 +564,7 @@ def finish(d_pred, v_pred, a, cd, cv, bit_axial_row, hole, bit_force, bit_torque
                 twist += q[i, j] * bit_rows[1, j]
             height = surface(pattern, pattern[2][0] + twist)[0]
         hole_out[i] = maximum(hole[i], bit_u + compliance * minimum(bit_force[i], 0.0) - height)
+        on_bottom[i] = bit_u >= hole_out[i] + height - ON_BOTTOM_TOLERANCE_M
         finite[i] = ok
         converged[i] = ok and bit_ok[i] and error[i] <= tolerance
         count += converged[i]
@@ -594,7 +598,7 @@ def step(state, step_inputs, bookkeeping, operands, final, out):
     work: StepWork arrays and the forces' Workspace arrays (the last: the (w, theta_y)
     accelerations, of which only the imbalance's node row is computed, when it is on);
     final: _FinalEvaluation.arrays;
-    out: (q, q_rate, q_acceleration, hole, finite, converged) of the new state;
+    out: (q, q_rate, q_acceleration, hole, finite, converged, on_bottom) of the new state;
     compact: (floats, flags, index) the work buffers of the iterations after the first
     (:class:`StepWork`), which run on the members still iterating only, gathered into arrays
     of their own (a member frozen after the first iteration costs nothing more: with wall
@@ -622,7 +626,7 @@ def step(state, step_inputs, bookkeeping, operands, final, out):
      radial, in_contact, tangent, bending_z_acceleration_t) = work
     (final_full, final_modal, final_radial, final_contact, final_tangent, bit_rop, bit_omega,
      bit_force, bit_torque, bit_lifted, bit_jacobian, bit_solved) = final
-    q_out, q_rate_out, q_acceleration_out, hole_out, finite, converged = out
+    q_out, q_rate_out, q_acceleration_out, hole_out, finite, converged, on_bottom = out
     external_load(top_speed, top_acceleration, hooks, mass_driven, damping_driven,
                   top_axial_row, static_hook, load)
     for i in range(due.shape[0]):
@@ -766,7 +770,7 @@ def step(state, step_inputs, bookkeeping, operands, final, out):
     count = finish(d_pred, v_pred, a, cd, cv, bit_axial_row, hole, bit_force, bit_torque,
                    law[0, 7], static_force, bit_rows, axial_index, torsion_index, final_full,
                    final_modal, error, bit_ok, tolerance, q_out, q_rate_out,
-                   q_acceleration_out, hole_out, finite, converged, pattern)
+                   q_acceleration_out, hole_out, finite, converged, on_bottom, pattern)
     touching = False
     for i in range(final_contact.shape[0]):
         for node in range(final_contact.shape[1]):

@@ -367,11 +367,15 @@ class Simulator:
             self.contact_onset_count += np.sum(self.last.contact.in_contact
                                                & ~previous.contact.in_contact, axis=1)
         self._count_episodes()
-        on_bottom = self.on_bottom()
-        self.landing_count += on_bottom & ~self._on_bottom
+        on_bottom = result.on_bottom                  # the kernel's, unless states were merged
+        if on_bottom is None:
+            on_bottom = self.on_bottom()
+        before = self._on_bottom
+        if np.count_nonzero(before) < before.size:    # (a bit can land only if one was off)
+            self.landing_count += on_bottom & ~before
         self._on_bottom = on_bottom
         return StepResult(result.success, result.converged, result.finite, result.iterations,
-                          result.error, result.message, result.forces, retries)
+                          result.error, result.message, result.forces, retries, on_bottom)
 
     @property
     def impact_count(self) -> np.ndarray:
@@ -387,11 +391,15 @@ class Simulator:
         """Feed the step's contact flags and bit forces to the episode trackers."""
         last, system = self.last, self.system
         state = self.state
-        self.contact_episodes.update_from_contact(
-            state.time_s, last.contact.in_contact, last.contact.radial_force_n,
-            float(system.model.config.borehole.contact_stiffness_n_per_m),
-            lambda members, nodes: node_gap_m(system, state.q, members, nodes),
-            any_touching=last.contact_tangent is not None)     # None: nothing touches
+        contacts = self.contact_episodes
+        if last.contact_tangent is None and not contacts.any_open:    # None: nothing touches
+            contacts.update_untouched()
+        else:
+            contacts.update_from_contact(
+                state.time_s, last.contact.in_contact, last.contact.radial_force_n,
+                float(system.model.config.borehole.contact_stiffness_n_per_m),
+                lambda members, nodes: node_gap_m(system, state.q, members, nodes),
+                any_touching=last.contact_tangent is not None)
         self.lift_off_episodes.update(last.lifted, last.weight_on_bit_n)
 
     def _retry(self, new_state: BatchState, result: StepResult, start_speed: float,
@@ -425,7 +433,8 @@ class Simulator:
         merged = replace(result, success=not still_failed, converged=converged,
                          finite=result.finite | converged, message='' if not still_failed
                          else message, forces=forces,
-                         error=np.where(converged & ~result.converged, 0.0, result.error))
+                         error=np.where(converged & ~result.converged, 0.0, result.error),
+                         on_bottom=None)
         return new_state, merged, retries
 
     def _refine_contact_changes(self, new_state: BatchState, result: StepResult,
@@ -471,7 +480,7 @@ class Simulator:
         self.contact_refinements += len(refined)
         self.integrator.forget(refined)
         return new_state, replace(result, forces=_with_members(result.forces, refined,
-                                                               evaluation))
+                                                               evaluation), on_bottom=None)
 
     def _fine_steps(self, members: np.ndarray, start_speed: float, speed: float, count: int):
         """
