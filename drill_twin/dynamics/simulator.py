@@ -29,6 +29,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from drill_twin.config.schema import DrillStringConfig
+from drill_twin.dynamics import observed_bit
 from drill_twin.dynamics.bit_rock import BitRockLaw
 from drill_twin.dynamics.contact import ContactForces
 from drill_twin.dynamics.contact_events import ContactEpisodes, LiftOffEpisodes, node_gap_m
@@ -607,33 +608,33 @@ class Simulator:
             q = observer.rows(state.q)
             rate = observer.rows(state.q_rate[:keep])
             acceleration = observer.rows(state.q_acceleration[:keep])
-        rate += top * observer.driven
-        acceleration += top_acceleration * observer.driven
         stations = len(self.system.stations)
         fields, spins = observer.fields, observer.spins
-        # Torque balance of the whole string about x (the rigid rotation costs no strain).
-        top_torque = (acceleration[:, observer.mass] + rate[:, observer.damping]
-                      - forces.full[:keep, self.system.field(1)].sum(axis=1))
-        bit_u = q[:, observer.bit_u]
-        velocity = forces.rop_m_per_s
-        omega = forces.bit_speed_rad_per_s
-        height, height_rate = self.integrator.bottom_surface(state, omega)
-        on_bottom = self._on_surface(bit_u, height)
-        # The hole deepens (relative to the surface of a lobed bottom, which moves).
-        rop = np.where(on_bottom, np.maximum(velocity - height_rate, 0.0), 0.0)
-        length = self.system.model.mesh.total_length_m
-        e = self.law.e
+        hole = state.hole_u if state.hole_u is not None else np.ascontiguousarray(
+            q[:, observer.bit_u])
+        height, height_rate = self.integrator.bottom_surface(state, forces.bit_speed_rad_per_s)
+        derived = np.empty((len(observed_bit.DERIVED), self.members))
+        on_bottom = np.empty(self.members, dtype=bool)
+        # The torque balance of the whole string about x (the rigid rotation costs no
+        # strain), the bit's depth and the hole's, the rate the hole deepens (relative to the
+        # surface of a lobed bottom, which moves), the depth of cut.
+        observed_bit.derive(q, rate, acceleration, observer.driven, top, top_acceleration,
+                            forces.full, observer.torsion.start, observer.torsion.stop,
+                            observer.columns, forces.rop_m_per_s, forces.bit_speed_rad_per_s,
+                            height, height_rate, hole, self.system.model.mesh.total_length_m,
+                            self.law.e, state.top_angle_rad, derived, on_bottom)
+        depth, rop, angle, depth_of_cut, hole_depth, top_torque = derived
         return Observation(
             time_s=state.time_s,
-            depth_m=length + bit_u,
+            depth_m=depth,
             rop_m_per_s=rop,
-            angle_rad=state.top_angle_rad + q[:, observer.bit_angle],
-            speed_rad_per_s=omega,
+            angle_rad=angle,
+            speed_rad_per_s=forces.bit_speed_rad_per_s,
             weight_on_bit_n=forces.weight_on_bit_n,
             torque_on_bit_nm=forces.torque_on_bit_nm,
-            depth_of_cut_m_per_rad=rop * omega / (omega * omega + e * e),
+            depth_of_cut_m_per_rad=depth_of_cut,
             lifted=forces.lifted,
-            top_torque_nm=top_torque,
+            top_torque_nm=top_torque[:keep],
             top_speed_rad_per_s=top,
             top_angle_rad=state.top_angle_rad,
             hook_load_n=state.hook_load_n,
@@ -647,10 +648,10 @@ class Simulator:
             in_contact=forces.contact.in_contact,
             impacts_so_far=self.impact_count.copy(),
             lift_offs_so_far=self.lift_off_count.copy(),
-            bit_depth_m=length + bit_u,
-            hole_depth_m=length + self.hole_u(),
+            bit_depth_m=depth,
+            hole_depth_m=hole_depth,
             on_bottom=on_bottom,
-            bit_axial_velocity_m_per_s=velocity,
+            bit_axial_velocity_m_per_s=forces.rop_m_per_s,
             landings_so_far=self.landing_count.copy(),
         )
 
@@ -726,7 +727,8 @@ class _Observer:
 
     Columns of ``rows(q)``: hook (the top's axial DOF), the stations' (u, v, w) (``fields``,
     station-major), their (theta_x, theta_y, theta_z) (``spins``), the torque balance's mass
-    and damping rows, the bit's axial displacement and rotation.
+    and damping rows, the bit's axial displacement and rotation. ``columns``: those last four
+    (``observed_bit.derive``'s); ``torsion``: the torsional field's DOFs.
     """
 
     def __init__(self, system: ReducedSystem):
@@ -752,6 +754,9 @@ class _Observer:
         self.bit_u, self.bit_angle = 3 + 2 * count, 4 + 2 * count
         self.driven = np.zeros(self.operator.shape[1])
         self.driven[:physical.shape[0]] = physical[:, system.field(1)].sum(axis=1)
+        self.torsion = system.field(1)
+        self.columns = np.array([self.mass, self.damping, self.bit_u, self.bit_angle],
+                                dtype=np.int64)
 
     def rows(self, q: np.ndarray) -> np.ndarray:
         """Return the observed rows of reduced vectors q (m, n): (m, k)."""

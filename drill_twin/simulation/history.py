@@ -28,6 +28,9 @@ BIT_CHANNELS = {
 }
 SHARED_CHANNELS = {'top_speed_rad_per_s': 'top_speed_rad_per_s', 'hook_load_n': 'hook_load_n'}
 STATION_FIELDS = ('axial', 'v', 'w')
+STATION_RECORDS = ('station_displacement_m', 'station_velocity_m_per_s',
+                   'station_acceleration_m_per_s2', 'station_spin_rate_rad_per_s')
+"""The Observation's (m, n_stations, 3) arrays a History records."""
 
 
 @dataclass
@@ -83,53 +86,59 @@ class SimulationResult:
 
 
 class History:
-    """Preallocated recorder of :class:`Observation` for ``n_records`` samples."""
+    """
+    Preallocated recorder of :class:`Observation` for ``n_records`` samples.
+
+    Recorded time first (a sample is one contiguous row of each buffer: a quarter of the cost
+    of a strided column), handed out time last by :meth:`result`.
+    """
 
     def __init__(self, members: int, n_stations: int, n_records: int, time_step_s: float,
                  stations_m):
         self.count = 0
         self.time_step_s = time_step_s
         self.time_s = np.zeros(n_records)
-        self.channels = {name: np.zeros((members, n_records)) for name in BIT_CHANNELS}
-        self.channels['bit_lifted_off'] = np.zeros((members, n_records), dtype=bool)
-        self.channels['bit_on_bottom'] = np.zeros((members, n_records), dtype=bool)
-        self.channels['contact_nodes'] = np.zeros((members, n_records), dtype=int)
-        self.channels['max_contact_force_n'] = np.zeros((members, n_records))
-        self.shared = {name: np.zeros(n_records) for name in SHARED_CHANNELS}
-        shape = (members, n_stations, 3, n_records)
+        kinds = {'bit_lifted_off': bool, 'bit_on_bottom': bool}
+        self._channels = {name: np.zeros((n_records, members), dtype=kinds.get(name, float))
+                          for name in BIT_CHANNELS}
+        self._channels['contact_nodes'] = np.zeros((n_records, members), dtype=int)
+        self._channels['max_contact_force_n'] = np.zeros((n_records, members))
+        self._shared = {name: np.zeros(n_records) for name in SHARED_CHANNELS}
+        self._copied = [(self._channels[name], attribute)
+                        for name, attribute in BIT_CHANNELS.items()]
+        self._copied += [(self._shared[name], attribute)
+                         for name, attribute in SHARED_CHANNELS.items()]
+        shape = (n_records, members, n_stations, 3)
         self.stations_m = np.asarray(stations_m, dtype=float)
-        self.displacement = np.zeros(shape)
-        self.velocity = np.zeros(shape)
-        self.acceleration = np.zeros(shape)
-        self.spin = np.zeros(shape)
+        self._stations = {name: np.zeros(shape) for name in STATION_RECORDS}
 
     def record(self, observation: Observation) -> None:
         k = self.count
         self.time_s[k] = observation.time_s
-        for name, attribute in BIT_CHANNELS.items():
-            self.channels[name][:, k] = getattr(observation, attribute)
-        self.channels['contact_nodes'][:, k] = observation.in_contact.sum(axis=1)
-        self.channels['max_contact_force_n'][:, k] = observation.contact_force_n.max(axis=1)
-        for name, attribute in SHARED_CHANNELS.items():
-            self.shared[name][k] = getattr(observation, attribute)
-        self.displacement[..., k] = observation.station_displacement_m
-        self.velocity[..., k] = observation.station_velocity_m_per_s
-        self.acceleration[..., k] = observation.station_acceleration_m_per_s2
-        self.spin[..., k] = observation.station_spin_rate_rad_per_s
+        for buffer, attribute in self._copied:
+            buffer[k] = getattr(observation, attribute)
+        self._channels['contact_nodes'][k] = observation.in_contact.sum(axis=1)
+        self._channels['max_contact_force_n'][k] = observation.contact_force_n.max(axis=1)
+        for name, buffer in self._stations.items():
+            buffer[k] = getattr(observation, name)
         self.count += 1
 
     def result(self, impact_count, lift_off_count, steps, iterations, wall_time_s,
                metadata=None, retries: int = 0) -> SimulationResult:
         n = self.count
+
+        def stations(name):
+            return np.ascontiguousarray(np.moveaxis(self._stations[name][:n], 0, -1))
+
         return SimulationResult(
             time_s=self.time_s[:n].copy(),
-            channels={k: v[:, :n].copy() for k, v in self.channels.items()},
-            shared={k: v[:n].copy() for k, v in self.shared.items()},
+            channels={k: np.ascontiguousarray(v[:n].T) for k, v in self._channels.items()},
+            shared={k: v[:n].copy() for k, v in self._shared.items()},
             stations_m=self.stations_m,
-            station_displacement_m=self.displacement[..., :n].copy(),
-            station_velocity_m_per_s=self.velocity[..., :n].copy(),
-            station_acceleration_m_per_s2=self.acceleration[..., :n].copy(),
-            station_spin_rate_rad_per_s=self.spin[..., :n].copy(),
+            station_displacement_m=stations('station_displacement_m'),
+            station_velocity_m_per_s=stations('station_velocity_m_per_s'),
+            station_acceleration_m_per_s2=stations('station_acceleration_m_per_s2'),
+            station_spin_rate_rad_per_s=stations('station_spin_rate_rad_per_s'),
             impact_count=np.asarray(impact_count).copy(),
             lift_off_count=np.asarray(lift_off_count).copy(),
             time_step_s=self.time_step_s, steps=steps, iterations=iterations,
