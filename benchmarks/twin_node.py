@@ -43,10 +43,10 @@ def timed_node_class():
     class TimedTwinNode(TwinNode):
         """TwinNode whose timer callback and engine advance are timed (perf_counter, s)."""
 
-        def __init__(self, **kwargs):
+        def __init__(self, engine, params, **kwargs):
             self.tick_start, self.tick_time, self.model_time = [], [], []
             self.tick_simulated = []
-            super().__init__(**kwargs)
+            super().__init__(engine, params, **kwargs)
             advance = self.engine.advance
 
             def timed_advance(steps):
@@ -74,6 +74,9 @@ def run_node(fast: bool, seconds: float, warm_up_s: float, log_dir: Path | None,
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
 
+    from drill_twin.ros.parameters import TwinParameters, validate_ros_arguments
+    from drill_twin.ros.twin_node import create_twin_node
+
     args = ['twin_benchmark', '--ros-args', '--params-file', str(ROOT / 'config' / 'twin.yaml'),
             '-p', f'fast:={str(fast).lower()}',
             '-p', f'ensemble_process:={str(not in_process).lower()}']
@@ -81,7 +84,8 @@ def run_node(fast: bool, seconds: float, warm_up_s: float, log_dir: Path | None,
     rclpy.init(args=args)
     executor = SingleThreadedExecutor()
     try:
-        node = timed_node_class()()
+        params = TwinParameters.from_values(validate_ros_arguments(args))
+        node = create_twin_node(params, node_class=timed_node_class())
         executor.add_node(node)
         cpu_start, wall_start = time.process_time(), time.perf_counter()
         children_start = os.times()
