@@ -57,6 +57,8 @@ class Estimate:
     law_lower: list = field(default_factory=list)
     law_upper: list = field(default_factory=list)
     resets: int = 0
+    replaced: int = 0
+    """Members that could not be integrated any more, replaced by copies of others."""
     final_germs: np.ndarray | None = None
     """(N, 2, 2) the analysed members' germs at the end of the log."""
     final_law_scales: np.ndarray | None = None
@@ -98,9 +100,12 @@ def run_filter(config: DrillStringConfig, settings: AssimilationConfig, log: Rig
         scales = np.concatenate([scales, scales])
     sim = Simulator(config, 2 * n, germs=np.concatenate([germs, germs]), system=system,
                     law_scales=scales)
-    guarded = GuardedSimulator(sim, first_member=1, name='ensemble members')
     rng = np.random.default_rng(np.random.SeedSequence(spec.seed, spawn_key=(1,)))
     sequential = SequentialFilter(sim, n, settings, rng)
+    guarded = GuardedSimulator(     # a stalled member: a copy of another of its half
+        sim, first_member=1, name='ensemble members',
+        on_stalled=lambda stalled: sequential.replace_stalled(
+            stalled, [range(n), range(n, 2 * n)]))
     dt = sim.dt
     steps = int(round(log.duration_s / dt))
     analysis_every = sequential.analysis_every
@@ -138,6 +143,7 @@ def run_filter(config: DrillStringConfig, settings: AssimilationConfig, log: Rig
         if progress is not None and step % 200 == 0:
             progress(time, log.duration_s)
     estimate.resets = guarded.resets
+    estimate.replaced = sequential.replaced
     if spec.parameters != 'none':
         estimate.final_germs = sequential.state.germs()
     if spec.parameters == 'law':
@@ -188,6 +194,7 @@ def summarise(estimate: Estimate, log: RigLog, settle_s: float,
         'scored_samples': int(keep.sum()),
         'analyses': int(a['nis'].size),
         'resets': int(estimate.resets),
+        'members_replaced': int(estimate.replaced),
     }
     if a['nis'].size:
         late = a['analysis_time_s'] >= settle_s

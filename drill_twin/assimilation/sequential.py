@@ -126,6 +126,43 @@ class SequentialFilter:
         """Why samples were refused since the last :meth:`take_refusals`."""
         self.history: list[AnalysisRecord] = []
         """The analyses since the last :meth:`take_history`."""
+        self.replaced = 0
+        """Members replaced by copies of others (:meth:`replace_stalled`)."""
+        self._donors = rng.spawn(1)[0]     # its own stream: the filter's draws are unchanged
+
+    # -- members that cannot be integrated -----------------------------------------------
+    def replace_stalled(self, stalled, pools=None) -> dict[int, int]:
+        """
+        Replace members the batch cannot integrate any more by copies of others: {member: donor}.
+
+        An analysis can move a member's germ or law to where the model, from any state, breaks
+        a physical bound (the state guard's); rather than stall the whole ensemble, such a
+        member is resampled: it becomes a copy (state and parameters,
+        :meth:`Simulator.copy_members`) of a member drawn at random among the healthy ones of
+        its pool, as a particle filter resamples; inflation spreads the two again. ``pools``:
+        the groups of member indices that may stand in for each other (default: the analysed
+        members; the offline filter adds its open-loop copies as a pool of their own). A pool
+        with no healthy member replaces nothing.
+        """
+        pools = pools or [range(self.members)]
+        stalled = set(int(m) for m in stalled)
+        replaced = {}
+        for pool in pools:
+            pool = [int(m) for m in pool]
+            targets = [m for m in pool if m in stalled]
+            healthy = [m for m in pool if m not in stalled]
+            if not targets or not healthy:
+                continue
+            for target in targets:
+                replaced[target] = int(self._donors.choice(healthy))
+        if replaced:
+            targets, sources = zip(*sorted(replaced.items()))
+            self.simulator.copy_members(list(targets), list(sources))
+            for target, source in zip(targets, sources):
+                if target < self.members and source < self.members:
+                    self._predicted[:, target] = self._predicted[:, source]
+            self.replaced += len(replaced)
+        return replaced
 
     # -- samples in ----------------------------------------------------------------------
     def offer(self, sample: Sample) -> str | None:

@@ -336,6 +336,39 @@ class Simulator:
         self.last = self._evaluate(state)
         self._on_bottom = self.on_bottom()
 
+    def copy_members(self, targets, sources) -> None:
+        """
+        Make each member of ``targets`` a copy of the member of ``sources`` beside it (indices).
+
+        The state (q, q', q'', the hole), the random germ and the law's factors are copied; the
+        copies' contraction-rate history is dropped and the reset listeners hear of them (an
+        ensemble's drill lines are reseated). What a filter does with a member it cannot
+        integrate (drill_twin.assimilation.sequential): it resamples it from the others.
+        """
+        targets = np.asarray(targets, dtype=int)
+        sources = np.asarray(sources, dtype=int)
+        if targets.shape != sources.shape:
+            raise ValueError(f'copy_members: {targets.size} targets, {sources.size} sources')
+        integrator = self.integrator
+        if integrator.germ is not None:
+            germ = integrator.germ.copy()
+            germ[targets] = germ[sources]
+            integrator.germ = germ
+        if integrator.law_scales is not None:
+            scales = integrator.law_scales.copy()
+            scales[targets] = scales[sources]
+            integrator.law_scales = scales
+        state = self.state
+        for name in ('q', 'q_rate', 'q_acceleration', 'hole_u'):
+            values = getattr(state, name)
+            if values is not None:
+                values[targets] = values[sources]
+        integrator.forget(targets)
+        self.last = self._evaluate(state)
+        self._on_bottom = self.on_bottom()
+        for listener in self.reset_listeners:
+            listener(targets)
+
     # -- stepping ------------------------------------------------------------------------
     def step(self) -> StepResult:
         """

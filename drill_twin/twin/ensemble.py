@@ -145,6 +145,7 @@ class LocalEnsemble:
             rng = np.random.default_rng(np.random.SeedSequence(settings.seed, spawn_key=(1,)))
             self.filter = SequentialFilter(simulator, settings.members, settings.assimilation,
                                            rng)
+            self.guarded.on_stalled = self.filter.replace_stalled
         self.step_index = 0
         self._request = None
         self.latest = self._result(0.0)

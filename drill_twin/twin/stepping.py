@@ -45,8 +45,9 @@ class TwinEvent:
 
     kind: 'impact' (a node touches the wall), 'contact_end', 'lift_off', 'landing',
     'diverged' (a member was reset after a failed step), 'implausible' (a member broke a
-    physical bound and was reset), 'command_rejected', 'ensemble_failed'. level: 'info',
-    'warn' or 'error'.
+    physical bound and was reset), 'member_replaced' (an ensemble filter's member that could
+    not be integrated any more was replaced by a copy of another), 'command_rejected',
+    'ensemble_failed'. level: 'info', 'warn' or 'error'.
     """
 
     kind: str
@@ -66,14 +67,20 @@ class GuardedSimulator:
     :param name: what the batch is called in messages when it holds one member
         ('the mean model') or when any member fails ('ensemble members').
     :param guard: the physical bounds (derived from the simulator's system if None).
+    :param on_stalled: what to do with members that broke a bound in MAX_CONSECUTIVE_FAILURES
+        steps in a row even from a safe state: called with their indices, it returns {member:
+        donor} for those it replaced (an ensemble filter copies another member of its pool,
+        :meth:`SequentialFilter.replace_stalled`); the others stall the batch (TwinStalled),
+        as every such member does without it.
 
     Counters: ``resets`` (members restarted), ``failed_steps`` (steps skipped after a
     failed retry), ``breaches`` (member steps that broke a bound).
     """
 
     def __init__(self, simulator: Simulator, first_member: int, name: str,
-                 guard: StateGuard | None = None):
+                 guard: StateGuard | None = None, on_stalled=None):
         self.simulator = simulator
+        self.on_stalled = on_stalled
         self.first_member = first_member
         self.name = name
         self.guard = guard or StateGuard(simulator.system, simulator.law,
@@ -162,6 +169,7 @@ class GuardedSimulator:
                 {'members': str(numbers[0]), 'reason': reasons[member],
                  'time_s': f'{state.time_s:.6g}',
                  **{key: f'{value:.6g}' for key, value in bit.items()}}))
+        self._replace_stalled(reasons)
         worst = int(np.max(self._consecutive_breaches))
         if worst >= MAX_CONSECUTIVE_FAILURES:
             member = int(np.argmax(self._consecutive_breaches))
@@ -170,6 +178,27 @@ class GuardedSimulator:
                               f'from a safe state, at t = {state.time_s:.6g} s '
                               f'({reasons[member]}): the model cannot represent this '
                               f'configuration or these commands')
+
+    def _replace_stalled(self, reasons: dict[int, str]) -> None:
+        """Hand the members stalled on a bound to ``on_stalled``; report those it replaced."""
+        stalled = np.flatnonzero(self._consecutive_breaches >= MAX_CONSECUTIVE_FAILURES)
+        if self.on_stalled is None or stalled.size == 0:
+            return
+        replaced = self.on_stalled([int(m) for m in stalled])
+        if not replaced:
+            return
+        simulator = self.simulator
+        self.guard.set_germs(simulator.integrator.germ, simulator.integrator.law_scales)
+        for member, donor in sorted(replaced.items()):
+            self._consecutive_breaches[member] = 0
+            which, numbers = self._which([member])
+            self.events.append(TwinEvent(
+                'member_replaced', 'warn', simulator.time_s,
+                f'{which} broke a physical bound in {MAX_CONSECUTIVE_FAILURES} steps in a row '
+                f'({reasons.get(member, "")}); replaced by a copy of member '
+                f'{self.first_member + donor} (its state and law)',
+                {'members': str(numbers[0]), 'donor': str(self.first_member + donor),
+                 'time_s': f'{simulator.time_s:.6g}'}))
 
     def _restore(self, members, before) -> None:
         state = self.simulator.state
