@@ -20,7 +20,7 @@ setup(
     python_requires='>=3.10',
     install_requires=[
         'setuptools',
-        'numpy>=1.24',
+        'numpy>=1.25',            # Generator.spawn (the filter's resampling stream)
         'scipy>=1.10',
         'PyYAML>=6.0',
         'matplotlib>=3.7',
