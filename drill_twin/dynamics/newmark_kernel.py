@@ -525,6 +525,17 @@ def _solve_bit(linear0, linear1, h, start0, start1, touch, slope, gdt, static_fo
     return rop, omega, f1, f2, free, j00, j01, j10, j11, solved, 1
 
 
+@inline
+def on_rock(bit_u, hole, height):
+    """
+    Whether a bit at axial displacement bit_u is on the rock (m, m, m).
+
+    At most ON_BOTTOM_TOLERANCE_M above the surface, which lies ``height`` below the hole's
+    mean bottom ``hole`` (Simulator._on_surface, in numpy, is the same test).
+    """
+    return bit_u >= (hole + height) - ON_BOTTOM_TOLERANCE_M
+
+
 @kernel
 def finish(d_pred, v_pred, a, cd, cv, bit_axial_row, hole, bit_force, bit_torque, compliance,
            static_force, bit_rows, axial_index, torsion_index, final_full, final_modal,
@@ -564,7 +575,7 @@ def finish(d_pred, v_pred, a, cd, cv, bit_axial_row, hole, bit_force, bit_torque
                 twist += q[i, j] * bit_rows[1, j]
             height = surface(pattern, pattern[2][0] + twist)[0]
         hole_out[i] = maximum(hole[i], bit_u + compliance * minimum(bit_force[i], 0.0) - height)
-        on_bottom[i] = bit_u >= hole_out[i] + height - ON_BOTTOM_TOLERANCE_M
+        on_bottom[i] = on_rock(bit_u, hole_out[i], height)
         finite[i] = ok
         converged[i] = ok and bit_ok[i] and error[i] <= tolerance
         count += converged[i]

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from drill_twin.dynamics.bit_rock import maximum
 from drill_twin.dynamics.compiled import kernel
-from drill_twin.dynamics.newmark_kernel import ON_BOTTOM_TOLERANCE_M
+from drill_twin.dynamics.newmark_kernel import on_rock
 
 DERIVED = ('depth_m', 'rop_m_per_s', 'angle_rad', 'depth_of_cut_m_per_rad', 'hole_depth_m',
            'top_torque_nm')
@@ -47,7 +47,7 @@ def derive(q_rows, rate_rows, acceleration_rows, driven, top_speed, top_accelera
     for i in range(q_rows.shape[0]):
         bit_u = q_rows[i, bit_u_column]
         derived[0, i] = length_m + bit_u
-        on = bit_u >= (hole[i] + height[i]) - ON_BOTTOM_TOLERANCE_M
+        on = on_rock(bit_u, hole[i], height[i])
         on_bottom[i] = on
         rop = maximum(velocity[i] - height_rate[i], 0.0) if on else 0.0
         derived[1, i] = rop
