@@ -298,6 +298,42 @@ def test_observe_reads_the_fields_of_the_state(default_config):
     assert observation.weight_on_bit_n.shape == (3,)
 
 
+def test_observe_derives_the_bit_quantities_by_their_definitions(default_config):
+    """
+    The bit's depth, angle, ROP, depth of cut, hole depth and on-bottom flag of an observation.
+
+    Against their definitions from the state directly: depth = L + u_bit (Phi's axial row at
+    the bit), angle = theta_top + theta_x at the bit, hole depth = L + the hole, on bottom
+    within 1 um, ROP = the bit's axial velocity on bottom and moving down (else 0), depth of
+    cut = ROP omega / (omega^2 + e^2). One member picked up off bottom, one drilling.
+    """
+    from drill_twin.dynamics.simulator import Simulator
+    simulator = Simulator(default_config, members=2,
+                          germs=np.eye(2) + np.zeros((2, 2, 2)))
+    simulator.set_hook_load(np.array([simulator.hook_load_command_n + 400e3,
+                                      simulator.hook_load_command_n]))
+    for _ in range(100):
+        simulator.step()
+    seen = simulator.observe()
+    state, integrator = simulator.state, simulator.integrator
+    length = simulator.system.model.mesh.total_length_m
+    bit_u = state.q @ integrator.bit_axial_row
+    np.testing.assert_allclose(seen.depth_m, length + bit_u, rtol=1e-14)
+    np.testing.assert_allclose(seen.bit_depth_m, seen.depth_m, rtol=0)
+    np.testing.assert_allclose(seen.angle_rad, state.top_angle_rad + state.q
+                               @ integrator.bit_rows[1], rtol=1e-12)
+    np.testing.assert_allclose(seen.hole_depth_m, length + state.hole_u, rtol=1e-14)
+    on_bottom = bit_u >= state.hole_u - 1e-6
+    assert seen.on_bottom.tolist() == on_bottom.tolist() == [False, True]
+    velocity = simulator.last.rop_m_per_s
+    rop = np.where(on_bottom, np.maximum(velocity, 0.0), 0.0)
+    np.testing.assert_array_equal(seen.rop_m_per_s, rop)
+    assert seen.rop_m_per_s[1] > 0
+    omega, e = seen.speed_rad_per_s, simulator.law.e
+    np.testing.assert_allclose(seen.depth_of_cut_m_per_rad, rop * omega / (omega ** 2 + e ** 2),
+                               rtol=1e-14)
+
+
 def test_a_step_with_wall_contact_matches_single_member_steps(default_config):
     """
     The compiled step with members pressed on the wall equals each member stepped alone.
