@@ -297,3 +297,44 @@ def test_the_parameter_walk_is_centred_and_spreads_the_parameters(config):
     spread_walk = np.sum((runs[0.05] - runs[0.05].mean(axis=0)) ** 2)
     spread = np.sum((runs[0.0] - runs[0.0].mean(axis=0)) ** 2)
     assert spread_walk > spread
+
+
+def test_the_parameters_take_their_own_inflation(config):
+    """
+    With parameter_inflation the state is analysed as before and the parameters' change scales.
+
+    The same deterministic analysis at inflation 1.5, the parameters at the state's inflation
+    and at their own 1.0: the reduced coordinates and rates agree, the parameters' change
+    from their forecast mean is the first run's divided by 1.5 (filter.analyse's definition).
+    (The hole's offset of a member on bottom is set by the write-back, with its law.)
+    """
+    runs = {}
+    for own in ('null', '1.0'):
+        settings = load_assimilation(None, [
+            'assimilation.filter.members=6', 'assimilation.filter.parameters=law',
+            'assimilation.filter.model_error_bit_speed_rad_per_s=0.0',
+            'assimilation.filter.inflation=1.5', 'assimilation.filter.relaxation=0.3',
+            f'assimilation.filter.parameter_inflation={own}',
+            'assimilation.filter.measurements=[top_torque]'])
+        simulator = Simulator(config, 6, germs=germs_for_realizations(0.2, 0, range(6)),
+                              law_scales=np.exp(0.1 * np.random.default_rng(1).standard_normal(
+                                  (6, 5))))
+        sequential = SequentialFilter(simulator, 6, settings, np.random.default_rng(0))
+        for _ in range(10):
+            simulator.step()
+            sequential._record()
+        forecast = sequential.state.extract()
+        predicted = sequential._prediction_at(simulator.time_s)[:, 0]
+        sequential.offer(Sample('top_drive', simulator.time_s, {'top_torque': predicted.mean()
+                                                                + 2 * predicted.std()}))
+        assert sequential._analyse_ready() is not None
+        runs[own] = forecast, sequential.state.extract()
+    (forecast, shared), (_, separate) = runs['null'], runs['1.0']
+    count = 8                                        # the germ's 3 coordinates and 5 factors
+    rates_end = shared.shape[1] - count - 1                       # q, q' (then the offset)
+    np.testing.assert_allclose(separate[:, :rates_end], shared[:, :rates_end], rtol=1e-12,
+                               atol=1e-12)
+    mean = forecast[:, -count:].mean(axis=0)
+    change = shared[:, -count:] - mean
+    assert np.max(np.abs(change)) > 1e-3                                 # the law was analysed
+    np.testing.assert_allclose(separate[:, -count:] - mean, change / 1.5, atol=1e-12)

@@ -51,6 +51,9 @@ class Analysis:
     innovation: np.ndarray
     innovation_covariance: np.ndarray
     nis: float
+    parameter_transform: np.ndarray | None = None
+    """(N, N): the same analysis with the parameters' own inflation and relaxation (None:
+    those of the state were asked for, use ``transform``)."""
 
     @property
     def measurements(self) -> int:
@@ -71,7 +74,8 @@ def inflation_transform(members: int, inflation: float) -> np.ndarray:
 
 def analyse(predicted: np.ndarray, measured: np.ndarray, noise_covariance: np.ndarray, *,
             method: str = 'etkf', inflation: float = 1.0, relaxation: float = 0.0,
-            rng: np.random.Generator | None = None) -> Analysis:
+            rng: np.random.Generator | None = None, parameter_inflation: float | None = None,
+            parameter_relaxation: float | None = None) -> Analysis:
     """
     Return the analysis transform of an ensemble (module docstring).
 
@@ -82,6 +86,11 @@ def analyse(predicted: np.ndarray, measured: np.ndarray, noise_covariance: np.nd
     :param inflation: multiplicative inflation of the anomalies (>= 1; 1 = none).
     :param relaxation: RTPP weight of the forecast anomalies in the analysed ones, in [0, 1).
     :param rng: the Generator of the observation perturbations (required for 'enkf').
+    :param parameter_inflation, parameter_relaxation: those of a second transform for the
+        augmented parameters (None: the state's). The analysis (its gain, from the members'
+        predictions inflated by ``inflation``) is the same; only how the anomalies are
+        inflated before it and relaxed after it differs: a static parameter has no
+        dynamics to spread it again, so inflating it at every analysis compounds.
 
     :return: :class:`Analysis`; its transform maps the forecast members (not inflated) to the
         analysed ones.
@@ -95,10 +104,13 @@ def analyse(predicted: np.ndarray, measured: np.ndarray, noise_covariance: np.nd
         raise ValueError(f'an ensemble needs at least 2 members, got {n_members}')
     if method not in METHODS:
         raise ValueError(f'method must be one of {METHODS}, got {method!r}')
-    if not (math.isfinite(inflation) and inflation >= 1.0):
-        raise ValueError(f'inflation must be >= 1, got {inflation!r}')
-    if not 0.0 <= relaxation < 1.0:
-        raise ValueError(f'relaxation must be in [0, 1), got {relaxation!r}')
+    for name, value in (('inflation', inflation), ('parameter_inflation', parameter_inflation)):
+        if value is not None and not (math.isfinite(value) and value >= 1.0):
+            raise ValueError(f'{name} must be >= 1, got {value!r}')
+    for name, value in (('relaxation', relaxation),
+                        ('parameter_relaxation', parameter_relaxation)):
+        if value is not None and not 0.0 <= value < 1.0:
+            raise ValueError(f'{name} must be in [0, 1), got {value!r}')
     R = np.asarray(noise_covariance, dtype=float)
     R = np.diag(R) if R.ndim == 1 else R
     if R.shape != (p, p):
@@ -129,15 +141,34 @@ def analyse(predicted: np.ndarray, measured: np.ndarray, noise_covariance: np.nd
         gains = np.linalg.solve(covariance, (y + noise - Y).T).T      # (N, p)
         transform = np.eye(n_members) + _centred_right(gains @ B.T) / (n_members - 1)
     nis = float(innovation @ np.linalg.solve(covariance, innovation))
+    parameter_transform = None
+    if parameter_inflation is not None or parameter_relaxation is not None:
+        parameter_transform = _inflated_and_relaxed(
+            transform, inflation if parameter_inflation is None else parameter_inflation,
+            relaxation if parameter_relaxation is None else parameter_relaxation)
+    return Analysis(transform=_inflated_and_relaxed(transform, inflation, relaxation),
+                    innovation=innovation, innovation_covariance=covariance, nis=nis,
+                    parameter_transform=parameter_transform)
+
+
+def _inflated_and_relaxed(transform: np.ndarray, inflation: float,
+                          relaxation: float) -> np.ndarray:
+    """
+    Return the transform of the forecast members, given that of the inflated ones.
+
+    ``transform`` maps the members inflated by ``inflation`` to the analysed ones; the result
+    maps the forecast (not inflated) members, with RTPP ``relaxation`` applied.
+    """
+    n_members = transform.shape[0]
     # T @ pre without an O(N^3) product: pre = J + inflation (I - J), J = 11^T / N.
     transform = (1.0 - inflation) * transform.mean(axis=1, keepdims=True) + inflation * transform
     if relaxation > 0:
+        pre = inflation_transform(n_members, inflation)
         # RTPP: J T + (1 - r) (I - J) T + r (I - J) pre: the mean kept, anomalies blended.
         mean_rows = transform.mean(axis=0, keepdims=True)                 # J T
         transform = (mean_rows + (1.0 - relaxation) * (transform - mean_rows)
                      + relaxation * (pre - pre.mean(axis=0, keepdims=True)))
-    return Analysis(transform=transform, innovation=innovation,
-                    innovation_covariance=covariance, nis=nis)
+    return transform
 
 
 def _centred_right(matrix: np.ndarray) -> np.ndarray:

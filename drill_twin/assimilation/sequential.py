@@ -265,17 +265,21 @@ class SequentialFilter:
         try:
             result = analyse(Y, np.asarray(y), np.maximum(np.asarray(variance), 1e-12),
                              method=spec.method, inflation=spec.inflation,
-                             relaxation=spec.relaxation, rng=self.rng)
+                             relaxation=spec.relaxation, rng=self.rng,
+                             parameter_inflation=spec.parameter_inflation,
+                             parameter_relaxation=spec.parameter_relaxation)
         except (np.linalg.LinAlgError, ValueError) as error:
             self._refuse(f'analysis at {now:.3f} s skipped: {error} ({used} sample(s) unused)')
             return None
         analysed = result.apply(forecast)
+        count = self.state.parameter_count
+        if count and result.parameter_transform is not None:
+            analysed[:, -count:] = result.parameter_transform @ forecast[:, -count:]
         sigma = spec.model_error_bit_speed_rad_per_s
         if sigma > 0:                         # additive inflation: centred, the mean unchanged
             kicks = sigma * self.rng.standard_normal(analysed.shape[0])
             analysed += np.outer(kicks - kicks.mean(), self.state.bit_speed_direction())
         walk = spec.parameter_walk_std
-        count = self.state.parameter_count
         if walk > 0 and count:                # the same for the parameters: centred kicks
             kicks = walk * self.rng.standard_normal((analysed.shape[0], count))
             analysed[:, -count:] += kicks - kicks.mean(axis=0)

@@ -136,7 +136,9 @@ class Filter:
     (rad/s, 0: none); parameter_walk_std: additive inflation of the augmented parameters,
     the standard deviation of a centred random change of each of their coordinates (log
     factors, germ coordinates) after each analysis (0: none; it keeps a static parameter's
-    spread from collapsing); seed: of the germs and the perturbations.
+    spread from collapsing); parameter_inflation, parameter_relaxation: the multiplicative
+    inflation and the RTPP weight of the augmented parameters' anomalies (None: the state's
+    ``inflation`` and ``relaxation``); seed: of the germs and the perturbations.
     """
 
     method: Method = 'etkf'
@@ -152,12 +154,20 @@ class Filter:
     bounds: Bounds = 'student_t'
     model_error_bit_speed_rad_per_s: float = 0.0
     parameter_walk_std: float = 0.0
+    parameter_inflation: float | None = None
+    parameter_relaxation: float | None = None
     seed: int = 0
 
     def __post_init__(self):
         _check(self.members >= 2, 'members', 'must be >= 2', self.members)
         _check(self.inflation >= 1, 'inflation', 'must be >= 1', self.inflation)
         _check(0 <= self.relaxation < 1, 'relaxation', 'must be in [0, 1)', self.relaxation)
+        _check(self.parameter_inflation is None or self.parameter_inflation >= 1,
+               'parameter_inflation', 'must be >= 1 (or null: the state\'s)',
+               self.parameter_inflation)
+        _check(self.parameter_relaxation is None or 0 <= self.parameter_relaxation < 1,
+               'parameter_relaxation', 'must be in [0, 1) (or null: the state\'s)',
+               self.parameter_relaxation)
         _check(self.analysis_rate_hz > 0, 'analysis_rate_hz', 'must be > 0',
                self.analysis_rate_hz)
         for name in self.measurements:

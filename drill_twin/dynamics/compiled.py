@@ -18,6 +18,14 @@ Kernels run on one thread (the batch is the vector axis) and use numpy's error m
 a division by zero gives inf or nan as in numpy, never an exception, so a diverging member
 is caught by the integrator's finiteness checks exactly as before. No fastmath: results keep
 numpy's rounding rules and nan/inf propagate.
+
+Vector code. A loop over the members that reads and writes many rows of work arrays (the
+finite strain's stress at a Gauss point: 16 rows read, 8 written) is vectorised by LLVM only
+behind run-time checks that the rows do not overlap; the cost model's default limit (128
+checks) turned that loop scalar. The limit is raised to VECTOR_MEMORY_CHECKS for the process
+(an LLVM option: it changes which loops get vector code, never a result: the loops without
+fastmath are element-wise, reductions are not reordered). Measured: the 64-member stress loop
+1170 -> 271 ns per Gauss point, bit for bit the same.
 """
 from __future__ import annotations
 
@@ -27,7 +35,13 @@ import tempfile
 import warnings
 from pathlib import Path
 
+import llvmlite.binding
 import numba
+
+VECTOR_MEMORY_CHECKS = 256
+"""LLVM's limit on the run-time alias checks of a vectorised loop (module docstring)."""
+llvmlite.binding.set_option(
+    'drill_twin', f'-vectorize-memory-check-threshold={VECTOR_MEMORY_CHECKS}')
 
 OPTIONS = dict(nogil=True, error_model='numpy')
 """Compilation options shared by every kernel."""
