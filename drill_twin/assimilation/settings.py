@@ -138,7 +138,9 @@ class Filter:
     factors, germ coordinates) after each analysis (0: none; it keeps a static parameter's
     spread from collapsing); parameter_inflation, parameter_relaxation: the multiplicative
     inflation and the RTPP weight of the augmented parameters' anomalies (None: the state's
-    ``inflation`` and ``relaxation``); seed: of the germs and the perturbations.
+    ``inflation`` and ``relaxation``; by default no inflation: a parameter has no dynamics
+    of its own, so inflating it at every analysis compounds where the data say little,
+    docs/ASSIMILATION.md); seed: of the germs and the perturbations.
     """
 
     method: Method = 'etkf'
@@ -154,7 +156,7 @@ class Filter:
     bounds: Bounds = 'student_t'
     model_error_bit_speed_rad_per_s: float = 0.0
     parameter_walk_std: float = 0.0
-    parameter_inflation: float | None = None
+    parameter_inflation: float | None = 1.0
     parameter_relaxation: float | None = None
     seed: int = 0
 
