@@ -24,7 +24,10 @@ Inflation: multiplicative, anomalies scaled by ``inflation`` (>= 1) before the a
 X and Y alike: Y is taken to be linear in X over the ensemble's spread). Relaxation to the
 prior perturbations (RTPP, Zhang, Snyder & Sun 2004): the analysed anomalies blended with the
 forecast ones, A_a <- (1 - relaxation) A_a + relaxation A_f, against the collapse of a small
-ensemble; also linear in the members, so it is part of the transform.
+ensemble; also linear in the members, so it is part of the transform. The augmented
+parameters may take their own inflation and relaxation (``parameter_inflation``,
+``parameter_relaxation``): the same analysis, a second transform
+(:attr:`Analysis.parameter_transform`).
 """
 from __future__ import annotations
 
