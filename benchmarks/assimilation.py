@@ -191,9 +191,12 @@ def main() -> None:
           f'({100 * (drilled["filtered_rop_m_per_s"] / drilled["truth_rop_m_per_s"] - 1):+.1f} %), '
           f'open loop {drilled["open_loop_rop_m_per_s"] * 1e3:.3f}')
     for v in visited:
-        print(f'law at {v["top_drive_speed_hz"]:g} Hz, WOB {v["weight_on_bit_n"] / 1e3:g} kN '
-              f'(from {v["from_s"]:g} s): ROP truth {v["truth_rop_m_per_s"] * 1e3:.3f} mm/s, '
-              f'estimated {100 * v["rop_relative_error"]:+.1f} %; TOB truth '
+        where = (f'law at {v["top_drive_speed_hz"]:g} Hz, WOB {v["weight_on_bit_n"] / 1e3:g} kN '
+                 f'(from {v["from_s"]:g} s): ROP truth {v["truth_rop_m_per_s"] * 1e3:.3f} mm/s, ')
+        if math.isnan(v['rop_relative_error']):
+            print(where + 'the estimated law does not drill there (no steady point)')
+            continue
+        print(where + f'estimated {100 * v["rop_relative_error"]:+.1f} %; TOB truth '
               f'{v["truth_tob_nm"]:.0f} N m, estimated {100 * v["tob_relative_error"]:+.1f} %')
 
 
