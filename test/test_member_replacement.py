@@ -8,7 +8,9 @@ on (same state, same law; the same trajectory to the Newton iteration's toleranc
 verifies its first iterates afresh); the guarded batch hands members stalled on a bound to
 its ``on_stalled`` and reports the replacement, and without one (or with no healthy member
 left) still stalls; the filter draws donors from the member's own pool only and carries the
-donor's stored predictions over.
+donor's stored predictions over. The twin's open-loop ensemble (no filter) gives such a
+member a healthy member's state under a fresh draw of the germ (the next realization of its
+study).
 """
 from __future__ import annotations
 
@@ -19,7 +21,10 @@ from drill_twin.assimilation.sequential import SequentialFilter
 from drill_twin.assimilation.settings import load_assimilation
 from drill_twin.assimilation.state import law_scales_for_members
 from drill_twin.config import load_config
+from drill_twin.dynamics.reduced_system import build_reduced_system
 from drill_twin.dynamics.simulator import Simulator
+from drill_twin.modal.reduced_basis import modal_analysis
+from drill_twin.twin.ensemble import EnsembleSettings, LocalEnsemble
 from drill_twin.twin.stepping import MAX_CONSECUTIVE_FAILURES, GuardedSimulator, TwinStalled
 from drill_twin.uncertainty.germ import germs_for_realizations
 
@@ -129,3 +134,64 @@ def test_the_filter_draws_donors_from_the_pool_and_carries_their_predictions(con
                                   sequential._predicted[:, replaced[1]])
     assert sequential.replaced == 3
     assert sequential.replace_stalled([0, 1, 2]) == {}  # no healthy member left in the pool
+
+
+def test_a_copy_under_a_new_germ_follows_its_own_law(config):
+    """
+    copy_members(germs=...): the donor's state under the new germ, which it then follows.
+
+    Given the donor's own germ the copy is the donor (as a plain copy); given another germ it
+    drills by that law from the next step on, not the donor's.
+    """
+    simulator = _batch(config)
+    for _ in range(40):
+        simulator.step()
+    simulator.copy_members([3], [1], germs=simulator.integrator.germ[1][None].copy())
+    new_germ = germs_for_realizations(0.2, 0, [17])
+    simulator.copy_members([2], [1], germs=new_germ)
+    np.testing.assert_array_equal(simulator.integrator.germ[2], new_germ[0])
+    np.testing.assert_array_equal(simulator.integrator.law_scales[2],
+                                  simulator.integrator.law_scales[1])
+    for name in ('q', 'q_rate', 'q_acceleration'):
+        np.testing.assert_array_equal(getattr(simulator.state, name)[2],
+                                      getattr(simulator.state, name)[1])
+    for _ in range(100):
+        simulator.step()
+    seen = simulator.observe()
+    assert seen.weight_on_bit_n[3] == pytest.approx(seen.weight_on_bit_n[1], rel=1e-6)
+    assert seen.torque_on_bit_nm[2] != pytest.approx(seen.torque_on_bit_nm[1], rel=1e-3)
+    with pytest.raises(ValueError, match='germs'):
+        Simulator(config, 2).copy_members([1], [0], germs=new_germ)
+
+
+def test_the_open_loop_ensemble_redraws_a_stalled_member_and_goes_on(config):
+    """
+    An open-loop member stalled on a bound takes a healthy state and realization N's germ.
+
+    The twin's open-loop ensemble used to drop whole on one such member; now the member is
+    redrawn (reported as member_replaced) and the ensemble goes on; the next one stalled
+    takes realization N + 1.
+    """
+    model, _, basis = modal_analysis(config)
+    settings = EnsembleSettings(members=3, dispersion=0.2, seed=7)
+    ensemble = LocalEnsemble(config, settings, build_reduced_system(model, basis))
+    guard = _Breached([1])
+    ensemble.guarded.guard = guard
+    speed = ensemble.simulator.top_drive.speed_rad_per_s
+    events = []
+    for _ in range(MAX_CONSECUTIVE_FAILURES // 2 + 5):
+        ensemble.start(2, np.full(2, speed), ensemble.simulator.state.hook_load_n)
+        result = ensemble.collect()
+        events += [e for e in result.events if e.kind == 'member_replaced']
+        if events:
+            guard.members.clear()                  # the redrawn member is plausible
+    assert len(events) == 1 and 'fresh draw of the germ' in events[0].message
+    assert events[0].values['members'] == '2'      # member 1 of the batch is ensemble member 2
+    germ = ensemble.simulator.integrator.germ
+    np.testing.assert_array_equal(germ[1], germs_for_realizations(0.2, 7, [3])[0])
+    np.testing.assert_array_equal(germ[[0, 2]], germs_for_realizations(0.2, 7, [0, 2]))
+    assert guard.germs_set == 1
+    replaced, germs = ensemble._redraws.choose([2], 3)
+    assert replaced[2] in (0, 1)
+    np.testing.assert_array_equal(germs, germs_for_realizations(0.2, 7, [4]))
+    assert ensemble._redraws.choose([0, 1, 2], 3) == ({}, None)    # no healthy member left

@@ -336,7 +336,7 @@ class Simulator:
         self.last = self._evaluate(state)
         self._on_bottom = self.on_bottom()
 
-    def copy_members(self, targets, sources) -> None:
+    def copy_members(self, targets, sources, germs=None) -> None:
         """
         Make each member of ``targets`` a copy of the member of ``sources`` beside it (indices).
 
@@ -344,15 +344,20 @@ class Simulator:
         copies' contraction-rate history is dropped and the reset listeners hear of them (an
         ensemble's drill lines are reseated). What a filter does with a member it cannot
         integrate (drill_twin.assimilation.sequential): it resamples it from the others.
+        ``germs`` (k, 2, 2): the copies take these germs instead of their sources' (a fresh
+        draw of the prior, for the twin's open-loop ensemble); the new law acts from the next
+        step (the copied accelerations are the source's).
         """
         targets = np.asarray(targets, dtype=int)
         sources = np.asarray(sources, dtype=int)
         if targets.shape != sources.shape:
             raise ValueError(f'copy_members: {targets.size} targets, {sources.size} sources')
         integrator = self.integrator
+        if germs is not None and integrator.germ is None:
+            raise ValueError('copy_members: germs given for a batch without germs')
         if integrator.germ is not None:
             germ = integrator.germ.copy()
-            germ[targets] = germ[sources]
+            germ[targets] = germ[sources] if germs is None else germs
             integrator.germ = germ
         if integrator.law_scales is not None:
             scales = integrator.law_scales.copy()

@@ -122,6 +122,38 @@ class EnsembleResult:
     samples_refused: int = 0
 
 
+class RedrawnMembers:
+    """
+    Fresh draws of the prior for the open-loop members the batch cannot integrate.
+
+    A member that breaks a physical bound in MAX_CONSECUTIVE_FAILURES steps in a row, even
+    from a safe state, has a germ the model cannot integrate under these commands. Rather than
+    drop the whole ensemble (and its bounds), such a member takes the state of a healthy
+    member drawn at random and the germ of the next realization of the same study
+    (realizations N, N + 1, ... of the ensemble's seed and dispersion: reproducible), so the
+    ensemble goes on sampling the prior among the germs the model can integrate. A copy of
+    another member's germ (what the filter does) would instead shrink the envelope.
+    """
+
+    def __init__(self, settings: EnsembleSettings):
+        self.dispersion, self.seed = settings.dispersion, settings.seed
+        self.next_realization = settings.members
+        self._donors = np.random.default_rng(np.random.SeedSequence(settings.seed,
+                                                                    spawn_key=(2,)))
+
+    def choose(self, stalled, members: int) -> tuple[dict[int, int], np.ndarray | None]:
+        """Return {member: donor} and the new germs (k, 2, 2) in the members' order."""
+        stalled = sorted(set(int(m) for m in stalled))
+        healthy = [m for m in range(members) if m not in stalled]
+        if not stalled or not healthy:
+            return {}, None
+        replaced = {m: int(self._donors.choice(healthy)) for m in stalled}
+        first = self.next_realization
+        self.next_realization += len(stalled)
+        return replaced, germs_for_realizations(self.dispersion, self.seed,
+                                                range(first, self.next_realization))
+
+
 class LocalEnsemble:
     """The ensemble integrated in this process (``collect`` does the work)."""
 
@@ -146,6 +178,10 @@ class LocalEnsemble:
             self.filter = SequentialFilter(simulator, settings.members, settings.assimilation,
                                            rng)
             self.guarded.on_stalled = self.filter.replace_stalled
+        else:
+            self._redraws = RedrawnMembers(settings)
+            self.guarded.on_stalled = self._redraw_stalled
+            self.guarded.replaced_with = 'its state, under a fresh draw of the germ'
         self.step_index = 0
         self._request = None
         self.latest = self._result(0.0)
@@ -166,6 +202,13 @@ class LocalEnsemble:
         rig's measurement samples received since the last tick (for the ensemble filter).
         """
         self._request = (steps, top_speeds_rad_per_s, hook_load_n, block, tuple(samples))
+
+    def _redraw_stalled(self, stalled) -> dict[int, int]:
+        """Replace open-loop members the batch cannot integrate (:class:`RedrawnMembers`)."""
+        replaced, germs = self._redraws.choose(stalled, self.simulator.members)
+        if replaced:
+            self.simulator.copy_members(list(replaced), list(replaced.values()), germs=germs)
+        return replaced
 
     def _reseat(self, members) -> None:
         if self.block.slack_m is not None:

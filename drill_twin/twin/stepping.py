@@ -70,17 +70,21 @@ class GuardedSimulator:
     :param on_stalled: what to do with members that broke a bound in MAX_CONSECUTIVE_FAILURES
         steps in a row even from a safe state: called with their indices, it returns {member:
         donor} for those it replaced (an ensemble filter copies another member of its pool,
-        :meth:`SequentialFilter.replace_stalled`); the others stall the batch (TwinStalled),
-        as every such member does without it.
+        :meth:`SequentialFilter.replace_stalled`; the open-loop ensemble copies a member's
+        state under a fresh draw of the germ); the others stall the batch (TwinStalled), as
+        every such member does without it.
+    :param replaced_with: what a replacement takes from its donor, in the event's words.
 
     Counters: ``resets`` (members restarted), ``failed_steps`` (steps skipped after a
     failed retry), ``breaches`` (member steps that broke a bound).
     """
 
     def __init__(self, simulator: Simulator, first_member: int, name: str,
-                 guard: StateGuard | None = None, on_stalled=None):
+                 guard: StateGuard | None = None, on_stalled=None,
+                 replaced_with: str = 'its state and law'):
         self.simulator = simulator
         self.on_stalled = on_stalled
+        self.replaced_with = replaced_with
         self.first_member = first_member
         self.name = name
         self.guard = guard or StateGuard(simulator.system, simulator.law,
@@ -196,7 +200,7 @@ class GuardedSimulator:
                 'member_replaced', 'warn', simulator.time_s,
                 f'{which} broke a physical bound in {MAX_CONSECUTIVE_FAILURES} steps in a row '
                 f'({reasons.get(member, "")}); replaced by a copy of member '
-                f'{self.first_member + donor} (its state and law)',
+                f'{self.first_member + donor} ({self.replaced_with})',
                 {'members': str(numbers[0]), 'donor': str(self.first_member + donor),
                  'time_s': f'{simulator.time_s:.6g}'}))
 
