@@ -268,6 +268,22 @@ def test_the_filter_estimates_the_laws_factors_and_publishes_them(config, walk):
     assert messages.law_messages(germ_only._analyse_ready()) == []
 
 
+def _law_filter(config, overrides):
+    """Return a 6-member filter of the law's factors on the surface torque, 10 steps recorded."""
+    settings = load_assimilation(None, [
+        'assimilation.filter.members=6', 'assimilation.filter.parameters=law',
+        'assimilation.filter.model_error_bit_speed_rad_per_s=0.0',
+        'assimilation.filter.measurements=[top_torque]', *overrides])
+    simulator = Simulator(config, 6, germs=germs_for_realizations(0.2, 0, range(6)),
+                          law_scales=np.exp(0.1 * np.random.default_rng(1).standard_normal(
+                              (6, 5))))
+    sequential = SequentialFilter(simulator, 6, settings, np.random.default_rng(0))
+    for _ in range(10):
+        simulator.step()
+        sequential._record()
+    return simulator, sequential
+
+
 def test_the_parameter_walk_is_centred_and_spreads_the_parameters(config):
     """
     The walk's kicks keep the parameters' mean of the walk-free analysis and widen the spread.
@@ -276,19 +292,9 @@ def test_the_parameter_walk_is_centred_and_spreads_the_parameters(config):
     """
     runs = {}
     for walk in (0.0, 0.05):
-        settings = load_assimilation(None, [
-            'assimilation.filter.members=6', 'assimilation.filter.parameters=law',
-            'assimilation.filter.model_error_bit_speed_rad_per_s=0.0',
+        simulator, sequential = _law_filter(config, [
             'assimilation.filter.method=etkf',
-            f'assimilation.filter.parameter_walk_std={walk!r}',
-            'assimilation.filter.measurements=[top_torque]'])
-        simulator = Simulator(config, 6, germs=germs_for_realizations(0.2, 0, range(6)),
-                              law_scales=np.exp(0.1 * np.random.default_rng(1).standard_normal(
-                                  (6, 5))))
-        sequential = SequentialFilter(simulator, 6, settings, np.random.default_rng(0))
-        for _ in range(10):
-            simulator.step()
-            sequential._record()
+            f'assimilation.filter.parameter_walk_std={walk!r}'])
         predicted = sequential._prediction_at(simulator.time_s)[:, 0]
         sequential.offer(Sample('top_drive', simulator.time_s, {'top_torque': predicted.mean()}))
         sequential._analyse_ready()
@@ -310,19 +316,9 @@ def test_the_parameters_take_their_own_inflation(config):
     """
     runs = {}
     for own in ('null', '1.0'):
-        settings = load_assimilation(None, [
-            'assimilation.filter.members=6', 'assimilation.filter.parameters=law',
-            'assimilation.filter.model_error_bit_speed_rad_per_s=0.0',
+        simulator, sequential = _law_filter(config, [
             'assimilation.filter.inflation=1.5', 'assimilation.filter.relaxation=0.3',
-            f'assimilation.filter.parameter_inflation={own}',
-            'assimilation.filter.measurements=[top_torque]'])
-        simulator = Simulator(config, 6, germs=germs_for_realizations(0.2, 0, range(6)),
-                              law_scales=np.exp(0.1 * np.random.default_rng(1).standard_normal(
-                                  (6, 5))))
-        sequential = SequentialFilter(simulator, 6, settings, np.random.default_rng(0))
-        for _ in range(10):
-            simulator.step()
-            sequential._record()
+            f'assimilation.filter.parameter_inflation={own}'])
         forecast = sequential.state.extract()
         predicted = sequential._prediction_at(simulator.time_s)[:, 0]
         sequential.offer(Sample('top_drive', simulator.time_s, {'top_torque': predicted.mean()
