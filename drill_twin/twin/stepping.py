@@ -45,8 +45,9 @@ class TwinEvent:
 
     kind: 'impact' (a node touches the wall), 'contact_end', 'lift_off', 'landing',
     'diverged' (a member was reset after a failed step), 'implausible' (a member broke a
-    physical bound and was reset), 'member_replaced' (an ensemble filter's member that could
-    not be integrated any more was replaced by a copy of another), 'command_rejected',
+    physical bound and was reset), 'member_replaced' (an ensemble member that could not be
+    integrated any more was replaced: by a copy of another in a filter, by another's state
+    under a fresh germ in open loop), 'command_rejected',
     'ensemble_failed'. level: 'info', 'warn' or 'error'.
     """
 
