@@ -155,6 +155,10 @@ def main() -> None:
                         'rop_relative_error': e_rop / t_rop - 1,
                         'tob_relative_error': e_tob / t_tob - 1})
     law['at_visited_set_points'] = visited
+    closed = np.isfinite(a['hole_rate_observed'])
+    windows = [{'analysis_time_s': t, 'observed_m_per_s': o, 'members_mean_m_per_s': p}
+               for t, o, p in zip(a['analysis_time_s'][closed], a['hole_rate_observed'][closed],
+                                  a['hole_rate_predicted'][closed])]
     result = {'duration_s': log.duration_s, 'members': args.members,
               'truth_scale': args.scale, 'truth_delta': args.truth_delta,
               'torque_bias_nm': args.torque_bias, 'filter': repr(filter_settings.filter),
@@ -162,6 +166,7 @@ def main() -> None:
               'scores_by_settle_s': scores, 'percentile_coverage_by_settle_s': percentile,
               'law_at_operating_point': law,
               'nis_per_measurement': (a['nis'] / a['measurements']).tolist(),
+              'hole_rate_windows': windows,
               'analysis_time_s': a['analysis_time_s'].tolist()}
     (out / 'assimilation.json').write_text(json.dumps(result, indent=2) + '\n')
     print(f'{log.duration_s:g} s, {args.members} members; rig {rig_wall:.0f} s, filter '
@@ -190,6 +195,9 @@ def main() -> None:
           f'{drilled["filtered_rop_m_per_s"] * 1e3:.3f} '
           f'({100 * (drilled["filtered_rop_m_per_s"] / drilled["truth_rop_m_per_s"] - 1):+.1f} %), '
           f'open loop {drilled["open_loop_rop_m_per_s"] * 1e3:.3f}')
+    for w in windows:
+        print(f'hole-rate window closed at {w["analysis_time_s"]:.1f} s: block slope '
+              f'{w["observed_m_per_s"] * 1e3:.3f} mm/s, members\' own {w["members_mean_m_per_s"] * 1e3:.3f}')
     for v in visited:
         where = (f'law at {v["top_drive_speed_hz"]:g} Hz, WOB {v["weight_on_bit_n"] / 1e3:g} kN '
                  f'(from {v["from_s"]:g} s): ROP truth {v["truth_rop_m_per_s"] * 1e3:.3f} mm/s, ')

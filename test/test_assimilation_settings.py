@@ -22,12 +22,21 @@ def test_the_shipped_file_loads():
     ('assimilation.sensors.downhole.delay_s=-2', 'assimilation.sensors.downhole.delay_s'),
     ('assimilation.sensors.hook.topic=rig/hook', 'assimilation.sensors.hook.topic'),
     ('assimilation.filter.method=ukf', 'assimilation.filter.method'),
+    ('assimilation.filter.hole_rate_window_s=-30', 'assimilation.filter.hole_rate_window_s'),
 ])
 def test_a_bad_value_is_one_line_naming_the_key(item, key):
     with pytest.raises(ConfigError) as error:
         load_assimilation(None, [item])
     message = str(error.value)
     assert '\n' not in message and key in message and message.startswith('--set')
+
+
+def test_the_hole_rate_needs_the_block_position():
+    assert load_assimilation(None, ['assimilation.filter.hole_rate_window_s=30']
+                             ).filter.hole_rate_window_s == 30
+    with pytest.raises(ConfigError, match='hole_rate_window_s: needs block_position'):
+        load_assimilation(None, ['assimilation.filter.hole_rate_window_s=30',
+                                 'assimilation.filter.measurements=[top_torque]'])
 
 
 def test_an_unknown_key_is_refused():

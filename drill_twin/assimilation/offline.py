@@ -40,7 +40,9 @@ class Estimate:
     depth (m); analysis_time_s (a,), nis (a,), measurements (a,) per analysis;
     germ_mean and germ_lower/upper (a, 3): G11, G12, G22 of the analysed members after each
     analysis; law_mean and law_lower/upper (a, 5): their factors of a1 ... a5 (NaN unless
-    the law is estimated).
+    the law is estimated); hole_rate_observed, hole_rate_predicted (a,): the block's slope over
+    the window an analysis closed and the members' mean own slope (m/s; NaN: no window closed,
+    :mod:`.hole_rate`).
     """
 
     time_s: list = field(default_factory=list)
@@ -56,6 +58,8 @@ class Estimate:
     law_mean: list = field(default_factory=list)
     law_lower: list = field(default_factory=list)
     law_upper: list = field(default_factory=list)
+    hole_rate_observed: list = field(default_factory=list)
+    hole_rate_predicted: list = field(default_factory=list)
     resets: int = 0
     replaced: int = 0
     """Members that could not be integrated any more, replaced by copies of others."""
@@ -75,6 +79,8 @@ class Estimate:
         self.law_mean.append(record.law_mean)
         self.law_lower.append(record.law_lower)
         self.law_upper.append(record.law_upper)
+        self.hole_rate_observed.append(record.hole_rate_observed_m_per_s)
+        self.hole_rate_predicted.append(record.hole_rate_predicted_m_per_s)
 
     def bounds(self, which: str = 'filtered', method: str = 'student_t') -> np.ndarray:
         """(k, 3): mean, lower and upper 95 % bound of the bit speed (rad/s)."""
@@ -85,7 +91,8 @@ class Estimate:
         return {name: np.asarray(getattr(self, name), dtype=float) for name in (
             'time_s', 'filtered', 'open_loop', 'hole_depth_m', 'analysis_time_s', 'nis',
             'measurements',
-            'germ_mean', 'germ_lower', 'germ_upper', 'law_mean', 'law_lower', 'law_upper')}
+            'germ_mean', 'germ_lower', 'germ_upper', 'law_mean', 'law_lower', 'law_upper',
+            'hole_rate_observed', 'hole_rate_predicted')}
 
 
 def run_filter(config: DrillStringConfig, settings: AssimilationConfig, log: RigLog, *,

@@ -27,6 +27,7 @@ import numpy as np
 
 from drill_twin.assimilation.bounds import BOUNDS_PERCENT
 from drill_twin.assimilation.filter import analyse
+from drill_twin.assimilation.hole_rate import HoleRateWindows
 from drill_twin.assimilation.measurements import SENSOR_CHANNELS, channel_values
 from drill_twin.assimilation.settings import SENSOR_OF, AssimilationConfig
 from drill_twin.assimilation.state import MemberState
@@ -58,7 +59,7 @@ class AnalysisRecord:
 
     Its model time (s), normalised innovation squared and number of measured values, the
     analysed members' germ entries (G11, G12, G22) and factors of the law's a1 ... a5: mean,
-    2.5 % and 97.5 % (NaN where they are not estimated).
+    2.5 % and 97.5 % (NaN where they are not estimated); the hole's rate (:mod:`.hole_rate`).
     """
 
     time_s: float
@@ -70,6 +71,10 @@ class AnalysisRecord:
     law_mean: tuple = (math.nan,) * 5
     law_lower: tuple = (math.nan,) * 5
     law_upper: tuple = (math.nan,) * 5
+    hole_rate_observed_m_per_s: float = math.nan
+    hole_rate_predicted_m_per_s: float = math.nan
+    """With ``hole_rate_window_s``: the block's slope over the window this analysis closed and
+    the members' mean own slope before it (m/s; NaN: no window closed)."""
 
 
 def sample_problem(sample: Sample) -> str | None:
@@ -129,6 +134,11 @@ class SequentialFilter:
         self.replaced = 0
         """Members replaced by copies of others (:meth:`replace_stalled`)."""
         self._donors = rng.spawn(1)[0]     # its own stream: the filter's draws are unchanged
+        self.hole_rate = None
+        """The hole's rate windows (:mod:`.hole_rate`), with ``hole_rate_window_s``."""
+        if spec.hole_rate_window_s is not None:
+            self.hole_rate = HoleRateWindows(simulator, self.members, spec.hole_rate_window_s,
+                                             simulator.time_s, settings.sensors.hook.delay_s)
 
     # -- members that cannot be integrated -----------------------------------------------
     def replace_stalled(self, stalled, pools=None) -> dict[int, int]:
@@ -158,9 +168,12 @@ class SequentialFilter:
         if replaced:
             targets, sources = zip(*sorted(replaced.items()))
             self.simulator.copy_members(list(targets), list(sources))
-            for target, source in zip(targets, sources):
-                if target < self.members and source < self.members:
-                    self._predicted[:, target] = self._predicted[:, source]
+            ours = [(t, s) for t, s in zip(targets, sources)
+                    if t < self.members and s < self.members]
+            for target, source in ours:
+                self._predicted[:, target] = self._predicted[:, source]
+            if self.hole_rate is not None and ours:
+                self.hole_rate.copy(*zip(*ours))
             self.replaced += len(replaced)
         return replaced
 
@@ -186,6 +199,8 @@ class SequentialFilter:
             return problem
         if any(c in self.channels for c in sample.values):
             self._pending.append(sample)
+        if self.hole_rate is not None and 'block_position' in sample.values:
+            self.hole_rate.offer(sample.stamp_s, sample.values['block_position'])
         return None
 
     def _refuse(self, problem: str) -> None:
@@ -215,6 +230,9 @@ class SequentialFilter:
         self._times[slot] = o.time_s
         for column, channel in enumerate(self.channels):
             self._predicted[slot, :, column] = channel_values(o, channel, self.members)
+        if self.hole_rate is not None:
+            self.hole_rate.after_step(
+                o.time_s, self._predicted[slot, :, self.channels.index('block_position')])
         self._records += 1
 
     def _prediction_at(self, stamp_s: float) -> np.ndarray | None:
@@ -236,10 +254,16 @@ class SequentialFilter:
     def _analyse_ready(self) -> AnalysisRecord | None:
         now = self.simulator.time_s
         ready = [s for s in self._pending if s.stamp_s <= now + 1e-9]
-        if not ready:
+        rates = [] if self.hole_rate is None else self.hole_rate.due(
+            now, self.settings.channel('block_position').std)
+        if not ready and not rates:
             return None
         self._pending = [s for s in self._pending if s.stamp_s > now + 1e-9]
         Y, y, variance, used = [], [], [], 0
+        for rate in rates:
+            Y.append(rate.predicted)
+            y.append(rate.observed_m_per_s)
+            variance.append(rate.variance)
         for sample in ready:
             prediction = self._prediction_at(sample.stamp_s)
             if prediction is None:
@@ -288,11 +312,14 @@ class SequentialFilter:
                          f'({used} sample(s) unused)')
             return None
         self.state.write(analysed)
+        if self.hole_rate is not None:
+            self.hole_rate.transform(result.transform)
+            self.hole_rate.after_write()
         self.samples_used += used
         # The smoother step: predictions still to be compared with late samples.
         self._predicted = np.matmul(result.transform, self._predicted)     # (t, N, c)
         self.analyses += 1
-        record = self._summary(now, result)
+        record = self._summary(now, result, rates[-1] if rates else None)
         self.history.append(record)
         return record
 
@@ -305,16 +332,20 @@ class SequentialFilter:
         germs = self.state.germs()
         return np.stack([germs[:, 0, 0], germs[:, 0, 1], germs[:, 1, 1]], axis=1)
 
-    def _summary(self, time_s: float, result) -> AnalysisRecord:
+    def _summary(self, time_s: float, result, rate=None) -> AnalysisRecord:
         germ, law = ((math.nan,) * 3,) * 3, ((math.nan,) * 5,) * 3
         if self.state.parameters != 'none':
             germ = _mean_and_bounds(self.germ_entries())
         if self.state.parameters == 'law':
             law = _mean_and_bounds(self.state.law_scales())
+        observed, predicted = ((rate.observed_m_per_s, float(rate.predicted.mean()))
+                               if rate is not None else (math.nan, math.nan))
         return AnalysisRecord(time_s=float(time_s), nis=float(result.nis),
                               measurements=result.measurements, germ_mean=germ[0],
                               germ_lower=germ[1], germ_upper=germ[2], law_mean=law[0],
-                              law_lower=law[1], law_upper=law[2])
+                              law_lower=law[1], law_upper=law[2],
+                              hole_rate_observed_m_per_s=observed,
+                              hole_rate_predicted_m_per_s=predicted)
 
 
 def _mean_and_bounds(values: np.ndarray) -> tuple[tuple, tuple, tuple]:

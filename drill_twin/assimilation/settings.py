@@ -140,7 +140,10 @@ class Filter:
     inflation and the RTPP weight of the augmented parameters' anomalies (None: the state's
     ``inflation`` and ``relaxation``; by default no inflation: a parameter has no dynamics
     of its own, so inflating it at every analysis compounds where the data say little,
-    docs/ASSIMILATION.md); seed: of the germs and the perturbations.
+    docs/ASSIMILATION.md); hole_rate_window_s: the length of the windows over which the
+    block's least-squares slope is compared with each member's own drilling (s; null: off;
+    :mod:`.hole_rate`: it gives the law's parameters the hole's rate, which the block position
+    analysed sample by sample hands to the state); seed: of the germs and the perturbations.
     """
 
     method: Method = 'etkf'
@@ -158,6 +161,7 @@ class Filter:
     parameter_walk_std: float = 0.0
     parameter_inflation: float | None = 1.0
     parameter_relaxation: float | None = None
+    hole_rate_window_s: float | None = None
     seed: int = 0
 
     def __post_init__(self):
@@ -189,6 +193,12 @@ class Filter:
                self.law_prior_log_std)
         _check(self.model_error_bit_speed_rad_per_s >= 0, 'model_error_bit_speed_rad_per_s',
                'must be >= 0', self.model_error_bit_speed_rad_per_s)
+        _check(self.hole_rate_window_s is None or (math.isfinite(self.hole_rate_window_s)
+                                                   and self.hole_rate_window_s > 0),
+               'hole_rate_window_s', 'must be > 0 (or null: off)', self.hole_rate_window_s)
+        _check(self.hole_rate_window_s is None or 'block_position' in self.measurements,
+               'hole_rate_window_s', 'needs block_position among the measurements',
+               self.measurements)
         _check(self.model_error_bit_speed_rad_per_s == 0 or 'torsional' in self.blocks,
                'model_error_bit_speed_rad_per_s', 'needs the torsional block analysed',
                self.blocks)
