@@ -24,6 +24,10 @@ threshold the ROP of the mean germ is not the members' mean ROP). Writes DIR/rig
 """
 from __future__ import annotations
 
+from drill_twin.cli import blas_threads
+
+blas_threads.limit_to_one()       # before numpy: two runs side by side must not spin
+
 import argparse
 import json
 import math
@@ -82,7 +86,7 @@ def main() -> None:
     log = read_rig_log(out / 'rig.mcap', filter_settings)
     clock = time.perf_counter()
     model, _, basis = modal_analysis(filter_config)
-    estimate = run_filter(filter_config, filter_settings, log,
+    estimate = run_filter(filter_config, filter_settings, log, progress=_progress(clock),
                           system=build_reduced_system(model, basis))
     filter_wall = time.perf_counter() - clock
 
@@ -206,6 +210,15 @@ def main() -> None:
             continue
         print(where + f'estimated {100 * v["rop_relative_error"]:+.1f} %; TOB truth '
               f'{v["truth_tob_nm"]:.0f} N m, estimated {100 * v["tob_relative_error"]:+.1f} %')
+
+
+def _progress(clock):
+    """Return a progress callback that prints model time and wall time every 10 s of log."""
+    def report(time_s, duration_s):
+        if abs(time_s / 10.0 - round(time_s / 10.0)) < 1e-9:
+            print(f'  {time_s:5.0f} / {duration_s:g} s of log, {time.perf_counter() - clock:5.0f} s '
+                  'of wall', flush=True)
+    return report
 
 
 def member_point(law: BitRockLaw, omega: float, wob: float, germ) -> tuple[float, float]:

@@ -17,6 +17,10 @@ settling time; and the wall time (real-time factor of the loop). Writes DIR/live
 """
 from __future__ import annotations
 
+from drill_twin.cli import blas_threads
+
+blas_threads.limit_to_one()       # before numpy: two runs side by side must not spin
+
 import argparse
 import json
 import os
