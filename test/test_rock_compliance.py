@@ -151,8 +151,8 @@ def test_an_evaluated_state_of_a_rising_bit_has_the_resting_torque(germ):
     The state evaluation (after a reset or an analysis: what is published until the next
     step) reads the law at the state's velocities; at that ROP Eq. 25 still presses (about
     -17 kN) and Eq. 26 gives t = -Z (a4 ROP / root + a5), about +1 kN m at 5.2 rad/s: the
-    rock would drive the bit. It is the resting branch's torque at the law's force instead,
-    as in the step's solve.
+    rock would drive the bit. It is the resting branch's torque at the force the rock bears
+    instead, as in the step's solve (for the mean law the closed form torque_of_force).
     """
     config = load_config(None, CHEAP + ['integration.time_step_s=0.005'])
     with threadpool_limits(limits=1, user_api='blas'):
@@ -170,5 +170,45 @@ def test_an_evaluated_state_of_a_rising_bit_has_the_resting_torque(germ):
     assert rop == pytest.approx(-1.5e-3, rel=1e-9) and omega > 1.0 and force < -1e4
     law = simulator.law
     assert law.forces(np.array([rop]), np.array([omega]), germs)[1][0] > 500.0  # Eq. 26's
-    assert torque == pytest.approx(law.torque_of_force(force, omega), rel=1e-12)
+    if germ is None:
+        assert torque == pytest.approx(law.torque_of_force(force, omega), rel=1e-12)
+    assert torque == pytest.approx(law.bearing_torque(np.array([force]), np.array([omega]),
+                                                      germs)[0], rel=1e-12)
     assert torque * omega <= 0.0
+
+
+def test_a_stepped_state_evaluates_to_the_steps_own_bit_force_and_torque():
+    """
+    What the rock bears is in the state: its evaluation is the step's bit force and torque.
+
+    Eight members of germs at delta 0.2 stepped 2 s: some cut, some rest on the rock's spring
+    (moving faster than their law cuts at that force: the law at their velocities gives more
+    than twice the force). The state evaluation, which an analysis's write-back and a reset
+    use for the accelerations, has the step's WOB and TOB on both branches (before
+    2026-12-03 it read the law at the velocities: 252 against 99 kN on the paper's string),
+    so writing a state back unchanged leaves its accelerations and its drilling as they were.
+    """
+    from drill_twin.assimilation.state import MemberState
+    from drill_twin.uncertainty.germ import germs_for_realizations
+    config = load_config(None, CHEAP)
+    with threadpool_limits(limits=1, user_api='blas'):
+        simulator = Simulator(config, 8, germs=germs_for_realizations(0.2, 0, range(8)))
+        for _ in range(int(round(2.0 / simulator.dt))):
+            simulator.step()
+        integrator, state = simulator.integrator, simulator.state
+        assert np.all(simulator.on_bottom())
+        at_velocities = integrator.evaluate(state, bearing=False).weight_on_bit_n
+        evaluation = integrator.evaluate(state)
+        step = simulator.last
+        resting = np.abs(at_velocities / step.weight_on_bit_n - 1.0) > 0.1
+        assert 0 < resting.sum() < 8                       # both branches are in the batch
+        np.testing.assert_allclose(evaluation.weight_on_bit_n, step.weight_on_bit_n, rtol=1e-9)
+        np.testing.assert_allclose(evaluation.torque_on_bit_nm, step.torque_on_bit_nm,
+                                   rtol=1e-9)
+        accelerations, hole = state.q_acceleration.copy(), simulator.hole_u().copy()
+        members = MemberState(simulator, 8, ['axial', 'torsional'])
+        members.write(members.extract())
+        largest = np.abs(accelerations).max()
+        np.testing.assert_allclose(simulator.state.q_acceleration, accelerations, rtol=0,
+                                   atol=1e-9 * largest)
+        np.testing.assert_array_equal(simulator.hole_u(), hole)

@@ -179,6 +179,24 @@ class BitRockLaw:
         share = np.clip(force / self.fade_force(omega), 0.0, 1.0)
         return -(omega / root) * (self.a4 * np.maximum(rate, 0.0) / root + self.a5) * share
 
+    def bearing_torque(self, force, omega, germ=None, scales=None):
+        """
+        Torque on bit (N m) where the rock bears the axial force ``force`` (m,) <= 0 (N).
+
+        The point of the law's graph with that force at ``omega`` (m,) rad/s, as the bit's
+        solve has it (:func:`bearing_torques`): what a compliant rock's spring force implies
+        for the torque, on the cutting and the resting branch alike. germ (m, 2, 2) or None;
+        scales (m, 5) factors of a1 ... a5 or None.
+        """
+        force = np.ascontiguousarray(force, dtype=float)
+        omega = np.ascontiguousarray(np.broadcast_to(omega, force.shape), dtype=float)
+        random = germ is not None
+        germs = (np.ascontiguousarray(germ, dtype=float).reshape(-1, 2, 2) if random
+                 else _IDENTITY_GERM)
+        torque = np.empty(force.shape)
+        bearing_torques(force, omega, germs, random, self.rows(scales), torque)
+        return torque
+
     def randomised(self, force, torque, rop, cutting_rate, omega, germ):
         """
         (F1, F2) of the random law at a point of the law's graph (shapes (m,)).
@@ -371,6 +389,59 @@ def bit_law(rop, omega, germ, random, constants, cut, force, torque, lifted, jac
         jacobian[i, 0, 1] = j01
         jacobian[i, 1, 0] = j10
         jacobian[i, 1, 1] = j11
+
+
+BEARING_ITERATIONS = 200
+"""Cap of the bisection that finds the mean-law force of a borne force (~60 are used)."""
+
+
+@kernel
+def bearing_torques(force, omega, germ, random, constants, torque):
+    """
+    Torque on bit where the rock bears the axial force ``force`` (m,) <= 0 at ``omega`` (m,).
+
+    Into ``torque`` (m,). The bit's solve (bit_equation) walks its graph along the mean-law
+    force f: the rock's axial force is the random law's F1 at the law's own point (R(f, omega),
+    omega) of f, its torque F2 likewise (on the cutting branch and on a compliant rock's
+    resting branch alike). Here f is found back from F1: f = F1 for the mean law; with a germ
+    by bisection on F1(f) = F1 over [lo, 0] (F1 is continuous, F1(0) = 0, F1 ~ G11 f for large
+    |f|); where a germ with a large G12 makes F1(f) non-monotone, one of its roots. A force
+    >= 0 (lifted) has no torque. germ (m or 1, 2, 2), constants (m or 1, 8) as bit_law's.
+    """
+    last = germ.shape[0] - 1
+    last_law = constants.shape[0] - 1
+    for i in range(force.shape[0]):
+        g = germ[min(i, last)]
+        k = constants[min(i, last_law)]
+        target, w = force[i], omega[i]
+        if not target < 0.0:
+            torque[i] = 0.0
+            continue
+        if not random:
+            torque[i] = torque_of_force(target, w, cutting_rate(target, w, k), k)
+            continue
+        low, high = target, 0.0
+        for _ in range(BEARING_ITERATIONS):
+            if _borne(low, w, g[0, 0], g[0, 1], g[1, 1], k)[0] <= target:
+                break
+            high, low = low, 2.0 * low
+        for _ in range(BEARING_ITERATIONS):
+            middle = 0.5 * (low + high)
+            if middle <= low or middle >= high:
+                break
+            if _borne(middle, w, g[0, 0], g[0, 1], g[1, 1], k)[0] <= target:
+                low = middle
+            else:
+                high = middle
+        torque[i] = _borne(0.5 * (low + high), w, g[0, 0], g[0, 1], g[1, 1], k)[1]
+
+
+@inline
+def _borne(mean_force, omega, g11, g12, g22, k):
+    """(F1, F2) of the random law at the law's own point of the mean-law force (scalars)."""
+    cut = cutting_rate(mean_force, omega, k)
+    mean_torque = torque_of_force(mean_force, omega, cut, k)
+    return randomised_point(mean_force, mean_torque, cut, cut, omega, g11, g12, g22, True, k)
 
 
 def _call_law(law: BitRockLaw, rop, omega, germ, cut: bool = True, scales=None):

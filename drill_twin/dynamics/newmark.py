@@ -170,6 +170,12 @@ class _BitSolution:
     solved: np.ndarray
 
 
+BEARING_AGREEMENT = 1e-7
+"""Relative difference between the law's force at the bit's velocities and the force the
+compliant rock bears beyond which :meth:`NewmarkIntegrator.evaluate` takes the rock's (the
+bit rests on the rock's spring); on the cutting branch they agree to rounding."""
+
+
 class NewmarkIntegrator:
     """
     Average-acceleration Newmark with a cached S0^-1 and an exact bit solve.
@@ -303,7 +309,8 @@ class NewmarkIntegrator:
             # A bit on bottom presses a compliant rock by -f / k, f the law's force at the
             # bit's velocities: the hole's (undeformed) bottom is that much above the bit. A
             # given hole is kept unless the bit is deeper in the rock than its force explains.
-            pressed = bit_u + compliance * np.minimum(self.evaluate(state).weight_on_bit_n, 0.0)
+            pressed = bit_u + compliance * np.minimum(
+                self.evaluate(state, bearing=False).weight_on_bit_n, 0.0)
             if hole_u is None:
                 state.hole_u = pressed
             else:
@@ -317,13 +324,23 @@ class NewmarkIntegrator:
             state.q_acceleration = la.solve(self.mass, residual_free.T).T
         return state
 
-    def evaluate(self, state: BatchState) -> ForceEvaluation:
+    def evaluate(self, state: BatchState, bearing: bool = True) -> ForceEvaluation:
         """
         f_NL at a state.
 
         With the bit-rock law of Eq. 25 at its velocities when the bit is on bottom (and no
         rock force when it is off bottom); a bit rising on bottom (ROP < 0) gets the torque of
         the law's resting branch at its force (docs/MODEL-CHOICES.md).
+
+        On a compliant rock the state also holds the force the rock bears: -k times the depth
+        by which the bit presses the hole's bottom, which is what every step ends with (the
+        hole's bottom ends where the bit ends less -F1 / k, on both branches of the bit's
+        solve). Where the law at the bit's velocities disagrees with it (a bit resting on the
+        rock's spring, moving faster than its law cuts at that force: the law there would
+        give twice the force or more), the rock's force is the spring's and the torque that of
+        the law's graph at that force (:meth:`BitRockLaw.bearing_torque`), as the step has
+        them; where they agree (cutting) the law's values are kept. ``bearing=False``: the law
+        at the velocities only (what a hole being placed under the bit needs).
         """
         fields = Kinematics.of(self.system, state.q, state.q_rate, state.q_acceleration,
                                state.top_speed_rad_per_s, state.top_acceleration_rad_per_s2,
@@ -348,10 +365,23 @@ class NewmarkIntegrator:
                 torque[i] = law.torque_of_force(force[i], omega[i])
                 jacobian[i] = 0.0
         if state.hole_u is not None:
-            off = state.q @ self.bit_axial_row < state.hole_u + height - ON_BOTTOM_TOLERANCE_M
+            bit_u = state.q @ self.bit_axial_row
+            off = bit_u < state.hole_u + height - ON_BOTTOM_TOLERANCE_M
             force, torque = np.where(off, 0.0, force), np.where(off, 0.0, torque)
             lifted = lifted | off
             jacobian = np.where(off[:, None, None], 0.0, jacobian)
+            compliance = self.forces.law.compliance
+            if bearing and compliance > 0.0:
+                borne = np.where(off, 0.0, -np.maximum(bit_u - state.hole_u - height, 0.0)
+                                 / compliance)
+                resting = ~off & (np.abs(borne - force)
+                                  > BEARING_AGREEMENT * np.abs(borne) + 1e-9)
+                law_torque = self.forces.law.bearing_torque(borne, omega, self.germ,
+                                                            self._law_scales)
+                force = np.where(off, force, borne)
+                torque = np.where(off, torque, law_torque)
+                lifted = np.where(off, lifted, borne >= 0.0)
+                jacobian = np.where(resting[:, None, None], 0.0, jacobian)
         bit = _BitSolution(rop + height_rate, omega, force, torque, lifted, jacobian,
                            np.ones(rop.shape, dtype=bool))
         return self._with_bit(evaluation, bit)
