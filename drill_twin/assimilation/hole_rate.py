@@ -133,9 +133,6 @@ class HoleRateWindows:
 
     def transform(self, matrix: np.ndarray) -> None:
         """Apply an analysis's member transform ``matrix`` (N, N) to the sums and to D."""
-        import os
-        if os.environ.get('HOLE_RATE_PLAIN'):
-            return
         self.drilled = matrix @ self.drilled
         for window in (*self._closed, self._open):
             window.sum_own = matrix @ window.sum_own
