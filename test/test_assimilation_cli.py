@@ -63,6 +63,7 @@ def test_assimilate_writes_the_estimate_and_the_summary(rig_log, tmp_path):
     result = drill_twin('assimilate', str(rig_log), *SMALL, *SENSORS, '--members', '2',
                         '--measurements', 'top_torque,block_position,bit_speed',
                         '--set', 'assimilation.filter.model_error_bit_speed_rad_per_s=0.05',
+                        '--set', 'assimilation.filter.parameters=germ',
                         '--out', str(out), '--summary', str(summary), '--settle', '0.1',
                         check=True)
     assert 'RMS error' in result.stdout

@@ -260,7 +260,8 @@ def test_the_filter_estimates_the_laws_factors_and_publishes_them(config, walk):
     assert published[0][1].layout.dim[0].label == 'a1,a2,a3,a4,a5'
     np.testing.assert_allclose(published[0][1].data, record.law_mean)
     germ_only = SequentialFilter(simulator, 6, load_assimilation(None, [
-        'assimilation.filter.members=6', 'assimilation.filter.measurements=[top_torque]']),
+        'assimilation.filter.members=6', 'assimilation.filter.measurements=[top_torque]',
+        'assimilation.filter.parameters=germ']),
         np.random.default_rng(0))
     simulator.step()
     germ_only._record()
@@ -273,6 +274,7 @@ def _law_filter(config, overrides):
     settings = load_assimilation(None, [
         'assimilation.filter.members=6', 'assimilation.filter.parameters=law',
         'assimilation.filter.model_error_bit_speed_rad_per_s=0.0',
+        'assimilation.filter.parameter_walk_std=0.0',
         'assimilation.filter.measurements=[top_torque]', *overrides])
     simulator = Simulator(config, 6, germs=germs_for_realizations(0.2, 0, range(6)),
                           law_scales=np.exp(0.1 * np.random.default_rng(1).standard_normal(

@@ -153,12 +153,12 @@ class Filter:
     analysis_rate_hz: float = 5.0
     measurements: tuple[str, ...] = ('top_torque', 'block_position')
     blocks: tuple[str, ...] = ('axial', 'torsional')
-    parameters: Parameters = 'germ'
+    parameters: Parameters = 'law'
     prior_dispersion: float = 0.2
     law_prior_log_std: float = 0.15
     bounds: Bounds = 'student_t'
     model_error_bit_speed_rad_per_s: float = 0.0
-    parameter_walk_std: float = 0.0
+    parameter_walk_std: float = 0.002
     parameter_inflation: float | None = 1.0
     parameter_relaxation: float | None = None
     hole_rate_window_s: float | None = None
