@@ -85,6 +85,19 @@ def test_the_twin_estimates_the_law_as_the_offline_filter_does(config, settings,
     assert not np.allclose(offline['law_mean'][-1], offline['law_mean'][0])
 
 
+@pytest.mark.parametrize('separate_process', [False, True])
+def test_the_twin_runs_the_hole_rate_windows_as_the_offline_filter_does(config, settings,
+                                                                       rig_log,
+                                                                       separate_process):
+    """With ``hole_rate_window_s`` (0.5 s windows): the same analyses, the windows among them."""
+    windows = replace(settings, filter=replace(settings.filter, hole_rate_window_s=0.5))
+    analyses, offline = _engine_against_offline(config, windows, rig_log, separate_process)
+    closed = [a for a in analyses if math.isfinite(a.hole_rate_observed_m_per_s)]
+    assert len(closed) >= 3
+    np.testing.assert_array_equal([a.hole_rate_predicted_m_per_s for a in analyses],
+                                  offline['hole_rate_predicted'])
+
+
 def _engine_against_offline(config, settings, rig_log, separate_process):
     """Run the engine over the log's samples and compare with run_filter; (analyses, offline)."""
     spec = settings.filter
