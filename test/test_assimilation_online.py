@@ -86,9 +86,8 @@ def test_the_twin_estimates_the_law_as_the_offline_filter_does(config, settings,
 
 
 @pytest.mark.parametrize('separate_process', [False, True])
-def test_the_twin_runs_the_hole_rate_windows_as_the_offline_filter_does(config, settings,
-                                                                       rig_log,
-                                                                       separate_process):
+def test_the_twin_runs_the_hole_rate_windows_as_the_offline_filter_does(
+        config, settings, rig_log, separate_process):
     """With ``hole_rate_window_s`` (0.5 s windows): the same analyses, the windows among them."""
     windows = replace(settings, filter=replace(settings.filter, hole_rate_window_s=0.5))
     analyses, offline = _engine_against_offline(config, windows, rig_log, separate_process)
