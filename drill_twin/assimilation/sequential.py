@@ -136,6 +136,8 @@ class SequentialFilter:
         self._donors = rng.spawn(1)[0]     # its own stream: the filter's draws are unchanged
         self.hole_rate = None
         """The hole's rate windows (:mod:`.hole_rate`), with ``hole_rate_window_s``."""
+        self._block_column = (self.channels.index('block_position')
+                              if 'block_position' in self.channels else None)
         if spec.hole_rate_window_s is not None:
             self.hole_rate = HoleRateWindows(simulator, self.members, spec.hole_rate_window_s,
                                              simulator.time_s, settings.sensors.hook.delay_s)
@@ -231,8 +233,7 @@ class SequentialFilter:
         for column, channel in enumerate(self.channels):
             self._predicted[slot, :, column] = channel_values(o, channel, self.members)
         if self.hole_rate is not None:
-            self.hole_rate.after_step(
-                o.time_s, self._predicted[slot, :, self.channels.index('block_position')])
+            self.hole_rate.after_step(o.time_s, self._predicted[slot, :, self._block_column])
         self._records += 1
 
     def _prediction_at(self, stamp_s: float) -> np.ndarray | None:

@@ -172,8 +172,8 @@ class _BitSolution:
 
 BEARING_AGREEMENT = 1e-7
 """Relative difference between the law's force at the bit's velocities and the force the
-compliant rock bears beyond which :meth:`NewmarkIntegrator.evaluate` takes the rock's (the
-bit rests on the rock's spring); on the cutting branch they agree to rounding."""
+compliant rock bears beyond which :meth:`NewmarkIntegrator.evaluate` takes the bit to rest on
+the rock's spring (its Jacobian is then zero); on the cutting branch they agree to rounding."""
 
 
 class NewmarkIntegrator:
@@ -335,11 +335,13 @@ class NewmarkIntegrator:
         On a compliant rock the state also holds the force the rock bears: -k times the depth
         by which the bit presses the hole's bottom, which is what every step ends with (the
         hole's bottom ends where the bit ends less -F1 / k, on both branches of the bit's
-        solve). Where the law at the bit's velocities disagrees with it (a bit resting on the
-        rock's spring, moving faster than its law cuts at that force: the law there would
-        give twice the force or more), the rock's force is the spring's and the torque that of
-        the law's graph at that force (:meth:`BitRockLaw.bearing_torque`), as the step has
-        them; where they agree (cutting) the law's values are kept. ``bearing=False``: the law
+        solve). For every bit on bottom the rock's force is the spring's and the torque that
+        of the law's graph at that force (:meth:`BitRockLaw.bearing_torque`), as the step has
+        them: on the cutting branch they equal the law's at the velocities to rounding; on the
+        resting branch (moving faster than its law cuts at that force) the law there would
+        give twice the force or more. Taken for every member, not only where the two differ,
+        so that the evaluation is continuous in the state. The law's Jacobian is kept where
+        the two agree (cutting) and is zero on the resting branch. ``bearing=False``: the law
         at the velocities only (what a hole being placed under the bit needs).
         """
         fields = Kinematics.of(self.system, state.q, state.q_rate, state.q_acceleration,
