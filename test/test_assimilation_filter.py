@@ -259,3 +259,42 @@ def test_the_student_t_bounds_cover_a_new_draw_95_percent_of_the_time():
         inside_p.append(low <= truth <= high)
     assert abs(np.mean(inside_t) - 0.95) < 4 * np.sqrt(0.95 * 0.05 / 4000)
     assert np.mean(inside_p) < 7 / 9
+
+
+@settings(max_examples=25, deadline=None)
+@given(members=st.integers(8, 24), inflation=st.floats(1.0, 1.5),
+       relaxation=st.floats(0.0, 0.9), seed=st.integers(0, 2**31))
+def test_localisation_by_motion_is_exact_when_the_motions_are_uncorrelated(
+        members, inflation, relaxation, seed):
+    """
+    For uncorrelated motions, each analysed with its own measurements = the global analysis.
+
+    The members' axial and torsional anomalies span orthogonal subspaces of the members
+    (their sample cross-covariance is exactly zero) and each measurement sees one motion:
+    then the ETKF's global transform and the transform of each motion's measurements alone
+    give the same analysed members, inflation and relaxation included (the case
+    ``localisation: motion`` rests on: it drops only cross-covariances that are sampling noise).
+    """
+    from drill_twin.assimilation.filter import no_information_transform
+    rng = np.random.default_rng(seed)
+    centred, _ = np.linalg.qr(np.eye(members) - 1.0 / members)
+    basis = centred[:, :members - 1]                   # orthonormal, orthogonal to ones
+    axial = 1.0 + basis[:, :3] @ rng.standard_normal((3, 3))
+    torsional = -2.0 + basis[:, 3:5] @ rng.standard_normal((2, 2))
+    h_axial, h_torsional = rng.standard_normal((2, 3)), rng.standard_normal((1, 2))
+    Y = np.hstack([axial @ h_axial.T, torsional @ h_torsional.T])
+    y = Y.mean(axis=0) + rng.standard_normal(3)
+    R = np.array([0.5, 0.7, 0.3])
+    T = analyse(Y, y, R, inflation=inflation, relaxation=relaxation).transform
+    T_axial = analyse(Y[:, :2], y[:2], R[:2], inflation=inflation,
+                      relaxation=relaxation).transform
+    T_torsional = analyse(Y[:, 2:], y[2:], R[2:], inflation=inflation,
+                          relaxation=relaxation).transform
+    np.testing.assert_allclose(T_axial @ axial, T @ axial, atol=1e-10)
+    np.testing.assert_allclose(T_torsional @ torsional, T @ torsional, atol=1e-10)
+    # A motion no measurement sees: inflation and relaxation only.
+    quiet = no_information_transform(members, inflation, relaxation)
+    np.testing.assert_allclose(T_axial @ torsional, quiet @ torsional, atol=1e-10)
+    np.testing.assert_allclose(quiet @ torsional - (quiet @ torsional).mean(axis=0),
+                               inflation * (torsional - torsional.mean(axis=0)), atol=1e-10)
+    np.testing.assert_allclose((quiet @ torsional).mean(axis=0), torsional.mean(axis=0))

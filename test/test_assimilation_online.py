@@ -348,3 +348,61 @@ def test_the_parameters_take_their_own_inflation(config):
     change = shared[:, -count:] - mean
     assert np.max(np.abs(change)) > 1e-3                                 # the law was analysed
     np.testing.assert_allclose(separate[:, -count:] - mean, change / 1.5, atol=1e-12)
+
+
+def test_localisation_by_motion_analyses_each_motion_with_its_own_channels(config):
+    """
+    With ``localisation: motion`` each motion's block takes the analysis of its channels only.
+
+    One torque and one block-position sample, analysed together (ETKF: deterministic). The
+    axial block's coordinates and rates are those of the analysis of the block position
+    alone, the torsional block's those of the torque alone, the parameters those of both
+    (filter.analyse computed here from the members' predictions); the buffer of predictions
+    takes the transform of each channel's motion. Without localisation the same samples move
+    the axial block otherwise (the torque's sampling correlation with it).
+    """
+    from drill_twin.assimilation.filter import analyse
+    runs = {}
+    for localisation in ('none', 'motion'):
+        simulator, sequential = _law_filter(config, [
+            'assimilation.filter.method=etkf', 'assimilation.filter.inflation=1.1',
+            'assimilation.filter.relaxation=0.3',
+            'assimilation.filter.measurements=[top_torque,block_position]',
+            f'assimilation.filter.localisation={localisation}'])
+        forecast, buffer = sequential.state.extract(), sequential._predicted.copy()
+        now = simulator.time_s
+        predicted = sequential._prediction_at(now)
+        measured = predicted.mean(axis=0) + 1.5 * predicted.std(axis=0)
+        sequential.offer(Sample('top_drive', now, {'top_torque': measured[0]}))
+        sequential.offer(Sample('hook', now, {'block_position': measured[1]}))
+        assert sequential._analyse_ready().measurements == 2
+        runs[localisation] = sequential.state.extract()
+    spec = sequential.settings.filter
+    variance = [sequential.settings.channel(c).std(predicted[:, k].mean()) ** 2
+                for k, c in enumerate(('top_torque', 'block_position'))]
+
+    def transform(rows):
+        result = analyse(predicted[:, rows], measured[rows], np.asarray(variance)[rows],
+                         inflation=spec.inflation, relaxation=spec.relaxation,
+                         parameter_inflation=spec.parameter_inflation)
+        return result.transform, result.parameter_transform
+
+    axial_t, _ = transform([1])
+    torsional_t, _ = transform([0])
+    _, parameter_t = transform([0, 1])
+    columns = sequential.state.motion_columns()
+    axial = columns['axial'][:-1]                        # the offset is set by the write-back
+    analysed = runs['motion']
+    np.testing.assert_allclose(analysed[:, axial], axial_t @ forecast[:, axial],
+                               rtol=1e-10, atol=1e-14)
+    np.testing.assert_allclose(analysed[:, columns['torsional']],
+                               torsional_t @ forecast[:, columns['torsional']],
+                               rtol=1e-10, atol=1e-14)
+    np.testing.assert_allclose(analysed[:, -8:], parameter_t @ forecast[:, -8:], rtol=1e-10,
+                               atol=1e-12)
+    np.testing.assert_allclose(sequential._predicted[:, :, 0],
+                               np.matmul(torsional_t, buffer[:, :, 0:1])[..., 0], rtol=1e-10)
+    np.testing.assert_allclose(sequential._predicted[:, :, 1],
+                               np.matmul(axial_t, buffer[:, :, 1:2])[..., 0], rtol=1e-10)
+    moved = np.abs(runs['none'][:, axial] - analysed[:, axial]).max()
+    assert moved > 1e-6 * np.abs(forecast[:, axial]).max()

@@ -154,6 +154,17 @@ def analyse(predicted: np.ndarray, measured: np.ndarray, noise_covariance: np.nd
                     parameter_transform=parameter_transform)
 
 
+def no_information_transform(members: int, inflation: float = 1.0,
+                             relaxation: float = 0.0) -> np.ndarray:
+    """
+    (N, N) transform of an analysis that measured nothing: the inflation and RTPP alone.
+
+    What :func:`analyse` gives a quantity no measurement informs: its mean kept, its
+    anomalies scaled by the inflation (the RTPP blends the inflated forecast with itself).
+    """
+    return _inflated_and_relaxed(np.eye(members), inflation, relaxation)
+
+
 def _inflated_and_relaxed(transform: np.ndarray, inflation: float,
                           relaxation: float) -> np.ndarray:
     """

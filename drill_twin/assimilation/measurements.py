@@ -35,6 +35,13 @@ MEMBER_DEPENDENT = ('top_torque', 'block_position', 'bit_speed', 'torque_on_bit'
 with the top drive and hook of the model: the same for all members)."""
 
 
+MOTION_OF = {'top_speed': 'torsional', 'top_torque': 'torsional', 'bit_speed': 'torsional',
+             'torque_on_bit': 'torsional', 'hook_load': 'axial', 'block_position': 'axial',
+             'weight_on_bit': 'axial'}
+"""The motion each channel measures, for localisation by motion (``localisation: motion``):
+its samples analyse that motion's block of the state only."""
+
+
 def channel_values(observation: Observation, channel: str, members: int) -> np.ndarray:
     """
     Return the channel's true value for the first ``members`` members, shape (members,).

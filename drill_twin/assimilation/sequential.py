@@ -26,9 +26,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from drill_twin.assimilation.bounds import BOUNDS_PERCENT
-from drill_twin.assimilation.filter import analyse
+from drill_twin.assimilation.filter import analyse, no_information_transform
 from drill_twin.assimilation.hole_rate import HoleRateWindows
-from drill_twin.assimilation.measurements import SENSOR_CHANNELS, channel_values
+from drill_twin.assimilation.measurements import MOTION_OF, SENSOR_CHANNELS, channel_values
 from drill_twin.assimilation.settings import SENSOR_OF, AssimilationConfig
 from drill_twin.assimilation.state import MemberState
 
@@ -136,6 +136,7 @@ class SequentialFilter:
         self._donors = rng.spawn(1)[0]     # its own stream: the filter's draws are unchanged
         self.hole_rate = None
         """The hole's rate windows (:mod:`.hole_rate`), with ``hole_rate_window_s``."""
+        self._motion_columns = self.state.motion_columns()
         self._block_column = (self.channels.index('block_position')
                               if 'block_position' in self.channels else None)
         if spec.hole_rate_window_s is not None:
@@ -260,11 +261,12 @@ class SequentialFilter:
         if not ready and not rates:
             return None
         self._pending = [s for s in self._pending if s.stamp_s > now + 1e-9]
-        Y, y, variance, used = [], [], [], 0
+        Y, y, variance, motions, used = [], [], [], [], 0
         for rate in rates:
             Y.append(rate.predicted)
             y.append(rate.observed_m_per_s)
             variance.append(rate.variance)
+            motions.append('axial')
         for sample in ready:
             prediction = self._prediction_at(sample.stamp_s)
             if prediction is None:
@@ -278,6 +280,7 @@ class SequentialFilter:
                 y.append(float(sample.values[channel]))
                 variance.append(float(self.settings.channel(channel).std(
                     prediction[:, column].mean())) ** 2)
+                motions.append(MOTION_OF[channel])
             used += 1
         if not y:
             return None
@@ -287,12 +290,15 @@ class SequentialFilter:
             self._refuse(f'analysis at {now:.3f} s skipped: the members\' predictions or '
                          f'state are not finite ({used} sample(s) unused)')
             return None
+        y, variance = np.asarray(y), np.maximum(np.asarray(variance), 1e-12)
+        local = None
         try:
-            result = analyse(Y, np.asarray(y), np.maximum(np.asarray(variance), 1e-12),
-                             method=spec.method, inflation=spec.inflation,
+            result = analyse(Y, y, variance, method=spec.method, inflation=spec.inflation,
                              relaxation=spec.relaxation, rng=self.rng,
                              parameter_inflation=spec.parameter_inflation,
                              parameter_relaxation=spec.parameter_relaxation)
+            if spec.localisation == 'motion':
+                local = self._motion_transforms(Y, y, variance, motions)
         except (np.linalg.LinAlgError, ValueError) as error:
             self._refuse(f'analysis at {now:.3f} s skipped: {error} ({used} sample(s) unused)')
             return None
@@ -300,6 +306,9 @@ class SequentialFilter:
         count = self.state.parameter_count
         if count and result.parameter_transform is not None:
             analysed[:, -count:] = result.parameter_transform @ forecast[:, -count:]
+        if local is not None:
+            for motion, columns in self._motion_columns.items():
+                analysed[:, columns] = local[motion] @ forecast[:, columns]
         sigma = spec.model_error_bit_speed_rad_per_s
         if sigma > 0:                         # additive inflation: centred, the mean unchanged
             kicks = sigma * self.rng.standard_normal(analysed.shape[0])
@@ -314,15 +323,41 @@ class SequentialFilter:
             return None
         self.state.write(analysed)
         if self.hole_rate is not None:
-            self.hole_rate.transform(result.transform)
+            self.hole_rate.transform(result.transform if local is None else local['axial'])
             self.hole_rate.after_write()
         self.samples_used += used
         # The smoother step: predictions still to be compared with late samples.
-        self._predicted = np.matmul(result.transform, self._predicted)     # (t, N, c)
+        if local is None:
+            self._predicted = np.matmul(result.transform, self._predicted)     # (t, N, c)
+        else:                                 # a new buffer, as above: views stay as they were
+            self._predicted = np.stack(
+                [np.matmul(local[MOTION_OF[channel]], self._predicted[:, :, column, None])[..., 0]
+                 for column, channel in enumerate(self.channels)], axis=2)
         self.analyses += 1
         record = self._summary(now, result, rates[-1] if rates else None)
         self.history.append(record)
         return record
+
+    def _motion_transforms(self, Y: np.ndarray, y: np.ndarray, variance: np.ndarray,
+                           motions: list) -> dict[str, np.ndarray]:
+        """
+        Return each motion's own analysis transform, from its channels' measurements only.
+
+        {'axial', 'torsional'}: (N, N) each; a motion no measurement of this analysis
+        informs keeps its mean (:func:`no_information_transform`).
+        """
+        spec, motions = self.settings.filter, np.asarray(motions)
+        transforms = {}
+        for motion in ('axial', 'torsional'):
+            rows = np.flatnonzero(motions == motion)
+            if rows.size == 0:
+                transforms[motion] = no_information_transform(self.members, spec.inflation,
+                                                              spec.relaxation)
+                continue
+            transforms[motion] = analyse(Y[:, rows], y[rows], variance[rows],
+                                         method=spec.method, inflation=spec.inflation,
+                                         relaxation=spec.relaxation, rng=self.rng).transform
+        return transforms
 
     def _oldest(self) -> float:
         finite = self._times[np.isfinite(self._times)]

@@ -29,6 +29,7 @@ BLOCKS = ('axial', 'torsional', 'bending_y', 'bending_z')
 Method = Literal['etkf', 'enkf']
 Parameters = Literal['germ', 'law', 'none']
 Bounds = Literal['student_t', 'percentile']
+Localisation = Literal['none', 'motion']
 
 
 def _check(condition: bool, key: str, message: str, value) -> None:
@@ -143,7 +144,12 @@ class Filter:
     docs/ASSIMILATION.md); hole_rate_window_s: the length of the windows over which the
     block's least-squares slope is compared with each member's own drilling (s; null: off;
     :mod:`.hole_rate`: it gives the law's parameters the hole's rate, which the block position
-    analysed sample by sample hands to the state); seed: of the germs and the perturbations.
+    analysed sample by sample hands to the state); localisation: none (every measurement
+    analyses the whole state) or motion (the axial block's coordinates, rates and the hole's
+    offset are analysed with the axial channels only, the torsional block's with the torsional
+    ones, :data:`~drill_twin.assimilation.measurements.MOTION_OF`; the parameters and any
+    bending block with all: a member's axial state then never moves on a torque's sampling
+    correlation); seed: of the germs and the perturbations.
     """
 
     method: Method = 'etkf'
@@ -162,6 +168,7 @@ class Filter:
     parameter_inflation: float | None = 1.0
     parameter_relaxation: float | None = None
     hole_rate_window_s: float | None = None
+    localisation: Localisation = 'none'
     seed: int = 0
 
     def __post_init__(self):

@@ -112,6 +112,23 @@ class MemberState:
         """Length of a member's state vector."""
         return 2 * self.columns.size + 1 + PARAMETER_COUNT[self.parameters]
 
+    def motion_columns(self) -> dict[str, np.ndarray]:
+        """
+        Return where each motion's numbers sit in a state vector: {'axial', 'torsional'}.
+
+        'axial': the axial block's coordinates and rates and the hole's offset; 'torsional':
+        the torsional block's coordinates and rates (either empty when its block is not
+        analysed). The rest (bending blocks, parameters) is neither.
+        """
+        system, k = self.simulator.system, self.columns.size
+        groups = {}
+        for motion in ('axial', 'torsional'):
+            mine = np.flatnonzero(np.isin(self.columns,
+                                          np.arange(system.size)[system.blocks[motion].columns]))
+            groups[motion] = np.concatenate([mine, k + mine])
+        groups['axial'] = np.append(groups['axial'], 2 * k)
+        return groups
+
     def extract(self) -> np.ndarray:
         """Return the state vectors, shape (members, size)."""
         state, m = self.simulator.state, self.members
