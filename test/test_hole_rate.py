@@ -25,6 +25,7 @@ DT = 0.01
 RATES = np.array([1.0e-4, 2.0e-4, 3.0e-4])            # m/s, each member's law
 STRETCH = np.array([0.5, 0.6, 0.7])                    # m, block above the hole bottom
 BLOCK_STD = 0.002                                      # m
+NONE = np.zeros(3)                                     # bit speeds and WOB (unused here)
 
 
 class _Holes:
@@ -43,7 +44,7 @@ def _drill(batch, windows, start_s, end_s, rates, stretch):
     for _ in range(int(round((end_s - start_s) / DT))):
         time += DT
         batch.holes = batch.holes + rates * DT
-        windows.after_step(time, batch.holes + stretch)
+        windows.after_step(time, batch.holes + stretch, NONE, NONE)
     return time
 
 
@@ -75,7 +76,7 @@ def test_a_members_slope_is_what_its_law_drilled_not_what_an_analysis_moved():
             windows.after_write()
         batch.holes = batch.holes + RATES * DT
         blocks.append(batch.holes + STRETCH)
-        windows.after_step(time, blocks[-1])
+        windows.after_step(time, blocks[-1], NONE, NONE)
     assert windows.due(time, lambda value: BLOCK_STD) == []        # not over yet
     time = _drill(batch, windows, time, time + DT, RATES, STRETCH)
     [observation] = windows.due(time, lambda value: BLOCK_STD)
@@ -156,12 +157,13 @@ def config():
     return load_config(None, SMALL)
 
 
-def _window_filter(config, window_s):
+def _window_filter(config, window_s, prediction='own_drilling'):
     settings = load_assimilation(None, [
         'assimilation.filter.members=6', 'assimilation.filter.parameters=law',
         'assimilation.filter.model_error_bit_speed_rad_per_s=0.0',
         'assimilation.filter.measurements=[block_position]',
-        f'assimilation.filter.hole_rate_window_s={window_s!r}'])
+        f'assimilation.filter.hole_rate_window_s={window_s!r}',
+        f'assimilation.filter.hole_rate_prediction={prediction}'])
     simulator = Simulator(config, 6, germs=germs_for_realizations(0.2, 0, range(6)),
                           law_scales=np.exp(0.3 * np.random.default_rng(1).standard_normal(
                               (6, 5))))
@@ -197,3 +199,35 @@ def test_the_filter_adds_the_window_to_the_analysis_that_closes_it(config):
     assert closing[0].hole_rate_observed_m_per_s == pytest.approx(slope, rel=1e-9)
     assert math.isfinite(closing[0].hole_rate_predicted_m_per_s)
     assert all(math.isnan(r.hole_rate_observed_m_per_s) for r in records if r is not closing[0])
+
+
+def test_the_steady_law_prediction_is_each_members_law_balancing_its_mean_weight(config):
+    """
+    With ``steady_law``, a member predicts the ROP at which its law balances its mean WOB.
+
+    Over a 0.5 s window of the real model (6 members, their own germs and factors of a1 ...
+    a5, on bottom): each prediction is a ROP at which the member's random law, at the bit
+    speed the test averaged over the window's steps, pushes back exactly the WOB averaged
+    likewise (BitRockLaw.forces, F1 = -WOB), and it differs from the member's own drilling.
+    """
+    simulator, sequential = _window_filter(config, 0.5, 'steady_law')
+    windows = sequential.hole_rate
+    speeds, weights = [], []
+    while simulator.time_s < 0.5 - 1e-9:
+        simulator.step()
+        sequential._record()
+        speeds.append(simulator.last.bit_speed_rad_per_s[:6].copy())
+        weights.append(-simulator.last.weight_on_bit_n[:6].copy())
+    simulator.step()
+    sequential._record()                                   # closes the window
+    window = windows._closed[0]
+    predicted = windows.steady_rates(window)
+    speed, weight = np.mean(speeds, axis=0), np.mean(weights, axis=0)
+    assert np.all(weight > 0) and np.all(predicted > 0)
+    law, scales = simulator.law, simulator.integrator.law_scales
+    for i in range(6):
+        force, _, lifted = law.scaled(scales[i]).forces(
+            np.array([predicted[i]]), np.array([speed[i]]), simulator.integrator.germ[i:i + 1])
+        assert not lifted[0]
+        assert -force[0] == pytest.approx(weight[i], rel=1e-9)
+    assert not np.allclose(predicted, window.member_slopes(), rtol=0.1)

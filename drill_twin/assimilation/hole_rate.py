@@ -24,6 +24,14 @@ stays continuous through an analysis except for what the analysis does not do li
 hole following an on-bottom bit). The observation's variance is that of a least-squares
 slope under white noise of the block's standard deviation, sigma^2 / sum (s - mean s)^2.
 
+With ``steady_law`` the prediction is instead each member's *law's* steady ROP at its mean
+bit speed and WOB over the window (:func:`.steady_law.steady_point`, with its germ and its
+factors of a1 ... a5; 0 where the law cannot drill there): what a string drilling steadily at
+those means drills. It hands the block's slope to the law's parameters directly, where the
+own drilling hands it to whatever the member's dynamics do with its law (an oscillating
+member drills faster than its law's steady point: the ROP is cut at 0). It is exact for a
+truth at its steady point and biased by the truth's own oscillation otherwise.
+
 A window is analysed at the first analysis after its end plus the hook sensor's delay; it
 needs block samples over at least half of it (else it is skipped). A member restarted by the
 state guard keeps its hole but not its stretch: its own trajectory jumps there (rare; the
@@ -35,6 +43,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from drill_twin.assimilation.steady_law import steady_point
 
 MINIMUM_COVERAGE = 0.5
 """A window is used when its block samples span at least this fraction of it."""
@@ -52,18 +62,25 @@ class _Window:
     sum_tt: float = 0.0
     sum_own: np.ndarray = None
     sum_t_own: np.ndarray = None
+    sum_speed: np.ndarray = None
+    sum_weight: np.ndarray = None
 
     def __post_init__(self):
         self.sum_own = np.zeros(self.members)
         self.sum_t_own = np.zeros(self.members)
+        self.sum_speed = np.zeros(self.members)
+        self.sum_weight = np.zeros(self.members)
 
-    def add_step(self, time_s: float, own: np.ndarray) -> None:
+    def add_step(self, time_s: float, own: np.ndarray, speed: np.ndarray,
+                 weight: np.ndarray) -> None:
         t = time_s - self.start_s
         self.steps += 1
         self.sum_t += t
         self.sum_tt += t * t
         self.sum_own += own
         self.sum_t_own += t * own
+        self.sum_speed += speed
+        self.sum_weight += weight
 
     def member_slopes(self) -> np.ndarray | None:
         """Least-squares slope of each member's own trajectory over the steps (m/s)."""
@@ -92,11 +109,14 @@ class HoleRateWindows:
 
     :param window_s: the windows' length (s); they follow each other from ``start_s``.
     :param delay_s: how long after a window's end its last block samples may arrive (s).
+    :param steady_law: predict each member's law's steady ROP at its window's mean bit speed
+        and WOB, not its own drilling (module docstring).
     """
 
     def __init__(self, simulator, members: int, window_s: float, start_s: float,
-                 delay_s: float = 0.0):
+                 delay_s: float = 0.0, steady_law: bool = False):
         self.simulator = simulator
+        self.steady_law = bool(steady_law)
         self.members = int(members)
         self.window_s = float(window_s)
         self.delay_s = float(delay_s)
@@ -115,8 +135,14 @@ class HoleRateWindows:
         """Return the members' own block trajectory at this instant (m), given their block."""
         return block - self._hole_seen + self.drilled
 
-    def after_step(self, time_s: float, block: np.ndarray) -> None:
-        """Count the step's drilling and add the own trajectory (``block``: (N,), m)."""
+    def after_step(self, time_s: float, block: np.ndarray, speed: np.ndarray,
+                   weight: np.ndarray) -> None:
+        """
+        Count the step's drilling and add the own trajectory.
+
+        ``block``: the members' block positions (N,), m; ``speed``: their bit speeds (N,),
+        rad/s; ``weight``: their WOB (N,), N (> 0 in compression).
+        """
         hole = self._hole()
         self.drilled += hole - self._hole_seen
         self._hole_seen = hole
@@ -124,7 +150,7 @@ class HoleRateWindows:
             self._closed.append(self._open)
             self._open = _Window(self._open.end_s, self._open.end_s + self.window_s,
                                  self.members)
-        self._open.add_step(time_s, self.own(block))
+        self._open.add_step(time_s, self.own(block), speed, weight)
 
     def offer(self, stamp_s: float, block_m: float) -> None:
         """Take a block sample (one stamped in a window already analysed is dropped)."""
@@ -150,6 +176,30 @@ class HoleRateWindows:
         for window in (*self._closed, self._open):
             window.sum_own[targets] = window.sum_own[sources]
             window.sum_t_own[targets] = window.sum_t_own[sources]
+            window.sum_speed[targets] = window.sum_speed[sources]
+            window.sum_weight[targets] = window.sum_weight[sources]
+
+    def steady_rates(self, window: _Window) -> np.ndarray:
+        """
+        Return each member's law's steady ROP at its mean bit speed and WOB over ``window``.
+
+        (N,), m/s; 0 where the member's law (its factors of a1 ... a5 and germ as they are
+        now) cannot drill at those means, or its bit did not press the rock on average.
+        """
+        integrator = self.simulator.integrator
+        scales, germs = integrator.law_scales, integrator.germ
+        law = self.simulator.law
+        speed = window.sum_speed / window.steps
+        weight = window.sum_weight / window.steps
+        rates = np.zeros(self.members)
+        for i in range(self.members):
+            if not (speed[i] > 0 and weight[i] > 0):
+                continue
+            member_law = law if scales is None else law.scaled(scales[i])
+            rop, _ = steady_point(member_law, float(speed[i]), float(weight[i]),
+                                  None if germs is None else germs[i])
+            rates[i] = rop if math.isfinite(rop) else 0.0
+        return rates
 
     def due(self, now_s: float, noise_std) -> list[HoleRateObservation]:
         """
@@ -165,7 +215,8 @@ class HoleRateWindows:
             inside = np.array([(s, v) for s, v in self._samples
                                if window.start_s < s <= window.end_s + 1e-9]).reshape(-1, 2)
             stamps, values = inside[:, 0], inside[:, 1]
-            predicted = window.member_slopes()
+            predicted = (self.steady_rates(window) if self.steady_law and window.steps
+                         else window.member_slopes())
             if (predicted is None or stamps.size < 3
                     or np.ptp(stamps) < MINIMUM_COVERAGE * self.window_s):
                 continue

@@ -140,8 +140,9 @@ class SequentialFilter:
         self._block_column = (self.channels.index('block_position')
                               if 'block_position' in self.channels else None)
         if spec.hole_rate_window_s is not None:
-            self.hole_rate = HoleRateWindows(simulator, self.members, spec.hole_rate_window_s,
-                                             simulator.time_s, settings.sensors.hook.delay_s)
+            self.hole_rate = HoleRateWindows(
+                simulator, self.members, spec.hole_rate_window_s, simulator.time_s,
+                settings.sensors.hook.delay_s, spec.hole_rate_prediction == 'steady_law')
 
     # -- members that cannot be integrated -----------------------------------------------
     def replace_stalled(self, stalled, pools=None) -> dict[int, int]:
@@ -234,7 +235,9 @@ class SequentialFilter:
         for column, channel in enumerate(self.channels):
             self._predicted[slot, :, column] = channel_values(o, channel, self.members)
         if self.hole_rate is not None:
-            self.hole_rate.after_step(o.time_s, self._predicted[slot, :, self._block_column])
+            m = self.members
+            self.hole_rate.after_step(o.time_s, self._predicted[slot, :, self._block_column],
+                                      o.speed_rad_per_s[:m], -o.weight_on_bit_n[:m])
         self._records += 1
 
     def _prediction_at(self, stamp_s: float) -> np.ndarray | None:

@@ -30,6 +30,7 @@ Method = Literal['etkf', 'enkf']
 Parameters = Literal['germ', 'law', 'none']
 Bounds = Literal['student_t', 'percentile']
 Localisation = Literal['none', 'motion']
+HoleRatePrediction = Literal['own_drilling', 'steady_law']
 
 
 def _check(condition: bool, key: str, message: str, value) -> None:
@@ -144,7 +145,10 @@ class Filter:
     docs/ASSIMILATION.md); hole_rate_window_s: the length of the windows over which the
     block's least-squares slope is compared with each member's own drilling (s; null: off;
     :mod:`.hole_rate`: it gives the law's parameters the hole's rate, which the block position
-    analysed sample by sample hands to the state); localisation: none (every measurement
+    analysed sample by sample hands to the state); hole_rate_prediction: what a member
+    predicts of a window's slope: own_drilling (the depth its law drilled in its steps) or
+    steady_law (its law's steady ROP at its mean bit speed and WOB over the window);
+    localisation: none (every measurement
     analyses the whole state) or motion (the axial block's coordinates, rates and the hole's
     offset are analysed with the axial channels only, the torsional block's with the torsional
     ones, :data:`~drill_twin.assimilation.measurements.MOTION_OF`; the parameters and any
@@ -168,6 +172,7 @@ class Filter:
     parameter_inflation: float | None = 1.0
     parameter_relaxation: float | None = None
     hole_rate_window_s: float | None = None
+    hole_rate_prediction: HoleRatePrediction = 'own_drilling'
     localisation: Localisation = 'none'
     seed: int = 0
 
