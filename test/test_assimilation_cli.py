@@ -16,7 +16,8 @@ ROOT = Path(__file__).resolve().parents[1]
 SMALL = ['--set', 'sections.drill_pipe.elements=8', '--set', 'sections.drill_collar.elements=4',
          '--set', 'reduced_basis.lateral_modes=6']
 SENSORS = ['--set', 'assimilation.sensors.downhole.rate_hz=8',
-           '--set', 'assimilation.sensors.downhole.delay_s=0.25']
+           '--set', 'assimilation.sensors.downhole.delay_s=0.25',
+           '--set', 'assimilation.filter.analysis_rate_hz=5.0']    # 2 analyses in 0.5 s
 
 
 def drill_twin(*args, check=False):

@@ -35,9 +35,13 @@ def config():
 
 @pytest.fixture(scope='module')
 def settings():
-    """Surface torque and block position at 10 Hz, bit speed by mud pulse 0.5 s late at 2 Hz."""
+    """
+    Surface torque and block position at 10 Hz, bit speed by mud pulse 0.5 s late at 2 Hz.
+
+    Analysed at 5 Hz: ten analyses in the 2 s log.
+    """
     return load_assimilation(None, [
-        'assimilation.filter.members=4',
+        'assimilation.filter.members=4', 'assimilation.filter.analysis_rate_hz=5.0',
         'assimilation.filter.measurements=[top_torque,block_position,bit_speed]',
         'assimilation.sensors.downhole.rate_hz=2.0',
         'assimilation.sensors.downhole.delay_s=0.5'])

@@ -162,6 +162,7 @@ def _window_filter(config, window_s, prediction='own_drilling'):
         'assimilation.filter.members=6', 'assimilation.filter.parameters=law',
         'assimilation.filter.model_error_bit_speed_rad_per_s=0.0',
         'assimilation.filter.measurements=[block_position]',
+        'assimilation.filter.analysis_rate_hz=5.0',
         f'assimilation.filter.hole_rate_window_s={window_s!r}',
         f'assimilation.filter.hole_rate_prediction={prediction}'])
     simulator = Simulator(config, 6, germs=germs_for_realizations(0.2, 0, range(6)),

@@ -160,7 +160,7 @@ class Filter:
     members: int = 16
     inflation: float = 1.02
     relaxation: float = 0.5
-    analysis_rate_hz: float = 5.0
+    analysis_rate_hz: float = 1.0
     measurements: tuple[str, ...] = ('top_torque', 'block_position')
     blocks: tuple[str, ...] = ('axial', 'torsional')
     parameters: Parameters = 'law'
