@@ -20,7 +20,10 @@ and with ``--set assimilation.filter.parameters=law`` the members' mean factors 
 is compared with the truth's law at the operating point (steady ROP and TOB at 0.83 Hz and
 WOB 100 kN), both as the law of the mean germ and as the mean over the analysed members'
 laws (the ensemble's estimate of a quantity nonlinear in the germ: near the law's cutting
-threshold the ROP of the mean germ is not the members' mean ROP). Writes DIR/rig.mcap, DIR/assimilation.json. Slow: the full model, 2N members.
+threshold the ROP of the mean germ is not the members' mean ROP), and the members' axial state
+over the last third against the truth's (WOB and bit speed standard deviations, the ROP of
+their bits' own steps, their laws' steady ROP at the last set-point). Writes DIR/rig.mcap,
+DIR/assimilation.json. Slow: the full model, 2N members.
 """
 from __future__ import annotations
 
@@ -159,6 +162,25 @@ def main() -> None:
                         'rop_relative_error': e_rop / t_rop - 1,
                         'tob_relative_error': e_tob / t_tob - 1})
     law['at_visited_set_points'] = visited
+    # The analysed members' axial state over the last third, against the truth's: how much
+    # they oscillate, what their bits drill by their own steps, and where their laws' steady
+    # point is at the last set-point (an oscillating bit drills faster than its steady point).
+    late = a['time_s'] >= 2.0 * log.duration_s / 3.0
+    truth_late = log.truth.time_s >= 2.0 * log.duration_s / 3.0
+    _, hz, weight = points[-1]
+    steady = np.array([member_point(filter_law.scaled(s), 2 * math.pi * hz, weight, g)[0]
+                       for s, g in zip(scales, estimate.final_germs)])
+    axial = {'window_s': drilled['window_s'],
+             'members_weight_on_bit_std_n':
+                 float(a['filtered_weight_on_bit_n'][late].std(axis=0).mean()),
+             'truth_weight_on_bit_std_n': float(log.truth.weight_on_bit_n[truth_late].std()),
+             'members_bit_speed_std_rad_per_s': float(a['filtered'][late].std(axis=0).mean()),
+             'truth_bit_speed_std_rad_per_s':
+                 float(log.truth.bit_speed_rad_per_s[truth_late].std()),
+             'members_rop_m_per_s': float(a['filtered_rop_m_per_s'][late].mean()),
+             'truth_rop_m_per_s': float(log.truth.rop_m_per_s[truth_late].mean()),
+             'members_steady_rop_at_last_set_point_m_per_s': steady.tolist(),
+             'truth_steady_rop_at_last_set_point_m_per_s': visited[-1]['truth_rop_m_per_s']}
     closed = np.isfinite(a['hole_rate_observed'])
     windows = [{'analysis_time_s': t, 'observed_m_per_s': o, 'members_mean_m_per_s': p}
                for t, o, p in zip(a['analysis_time_s'][closed], a['hole_rate_observed'][closed],
@@ -168,7 +190,7 @@ def main() -> None:
               'torque_bias_nm': args.torque_bias, 'filter': repr(filter_settings.filter),
               'rig_wall_s': rig_wall, 'filter_wall_s': filter_wall,
               'scores_by_settle_s': scores, 'percentile_coverage_by_settle_s': percentile,
-              'law_at_operating_point': law,
+              'law_at_operating_point': law, 'axial_state': axial,
               'nis_per_measurement': (a['nis'] / a['measurements']).tolist(),
               'hole_rate_windows': windows,
               'analysis_time_s': a['analysis_time_s'].tolist()}
@@ -199,6 +221,14 @@ def main() -> None:
           f'{drilled["filtered_rop_m_per_s"] * 1e3:.3f} '
           f'({100 * (drilled["filtered_rop_m_per_s"] / drilled["truth_rop_m_per_s"] - 1):+.1f} %), '
           f'open loop {drilled["open_loop_rop_m_per_s"] * 1e3:.3f}')
+    print(f'members over {axial["window_s"][0]:.0f}-{axial["window_s"][1]:.0f} s (truth): WOB std '
+          f'{axial["members_weight_on_bit_std_n"]:.0f} N ({axial["truth_weight_on_bit_std_n"]:.0f}), '
+          f'bit speed std {axial["members_bit_speed_std_rad_per_s"]:.3f} rad/s '
+          f'({axial["truth_bit_speed_std_rad_per_s"]:.3f}), ROP by their own steps '
+          f'{axial["members_rop_m_per_s"] * 1e3:.4f} mm/s ({axial["truth_rop_m_per_s"] * 1e3:.4f}); '
+          f'their laws\' steady ROP at the last set-point {steady.mean() * 1e3:.4f} mm/s, '
+          f'{steady.min() * 1e3:.4f} ... {steady.max() * 1e3:.4f} '
+          f'({axial["truth_steady_rop_at_last_set_point_m_per_s"] * 1e3:.4f})')
     for w in windows:
         print(f'hole-rate window closed at {w["analysis_time_s"]:.1f} s: block slope '
               f'{w["observed_m_per_s"] * 1e3:.3f} mm/s, members\' own {w["members_mean_m_per_s"] * 1e3:.3f}')

@@ -42,12 +42,16 @@ class Estimate:
     analysis; law_mean and law_lower/upper (a, 5): their factors of a1 ... a5 (NaN unless
     the law is estimated); hole_rate_observed, hole_rate_predicted (a,): the block's slope over
     the window an analysis closed and the members' mean own slope (m/s; NaN: no window closed,
-    :mod:`.hole_rate`).
+    :mod:`.hole_rate`); filtered_weight_on_bit_n and filtered_rop_m_per_s (k, N): the analysed
+    members' WOB (N, > 0 pressing) and their bits' ROP (m/s, their own steps' velocity) at the
+    same instants as the bit speeds.
     """
 
     time_s: list = field(default_factory=list)
     filtered: list = field(default_factory=list)
     open_loop: list = field(default_factory=list)
+    filtered_weight_on_bit_n: list = field(default_factory=list)
+    filtered_rop_m_per_s: list = field(default_factory=list)
     hole_depth_m: list = field(default_factory=list)
     analysis_time_s: list = field(default_factory=list)
     nis: list = field(default_factory=list)
@@ -89,8 +93,8 @@ class Estimate:
 
     def arrays(self) -> dict[str, np.ndarray]:
         return {name: np.asarray(getattr(self, name), dtype=float) for name in (
-            'time_s', 'filtered', 'open_loop', 'hole_depth_m', 'analysis_time_s', 'nis',
-            'measurements',
+            'time_s', 'filtered', 'open_loop', 'filtered_weight_on_bit_n',
+            'filtered_rop_m_per_s', 'hole_depth_m', 'analysis_time_s', 'nis', 'measurements',
             'germ_mean', 'germ_lower', 'germ_upper', 'law_mean', 'law_lower', 'law_upper',
             'hole_rate_observed', 'hole_rate_predicted')}
 
@@ -145,6 +149,8 @@ def run_filter(config: DrillStringConfig, settings: AssimilationConfig, log: Rig
             estimate.time_s.append(time)
             estimate.filtered.append(speed[:n].copy())
             estimate.open_loop.append(speed[n:].copy())
+            estimate.filtered_weight_on_bit_n.append(-sim.last.weight_on_bit_n[:n])
+            estimate.filtered_rop_m_per_s.append(sim.last.rop_m_per_s[:n].copy())
             hole = sim.hole_depth_m
             estimate.hole_depth_m.append((float(hole[:n].mean()), float(hole[n:].mean())))
         if progress is not None and step % 200 == 0:
