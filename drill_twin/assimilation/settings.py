@@ -158,7 +158,7 @@ class Filter:
 
     method: Method = 'etkf'
     members: int = 16
-    inflation: float = 1.02
+    inflation: float = 1.0
     relaxation: float = 0.5
     analysis_rate_hz: float = 1.0
     measurements: tuple[str, ...] = ('top_torque', 'block_position')
