@@ -23,6 +23,9 @@ def test_the_shipped_file_loads():
     ('assimilation.sensors.hook.topic=rig/hook', 'assimilation.sensors.hook.topic'),
     ('assimilation.filter.method=ukf', 'assimilation.filter.method'),
     ('assimilation.filter.hole_rate_window_s=-30', 'assimilation.filter.hole_rate_window_s'),
+    ('assimilation.filter.localisation=blocks', 'assimilation.filter.localisation'),
+    ('assimilation.filter.hole_rate_prediction=law',
+     'assimilation.filter.hole_rate_prediction'),
 ])
 def test_a_bad_value_is_one_line_naming_the_key(item, key):
     with pytest.raises(ConfigError) as error:
