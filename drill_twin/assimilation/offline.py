@@ -13,6 +13,8 @@ included: an ensemble smoother step).
 """
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -100,23 +102,31 @@ class Estimate:
 
 
 def run_filter(config: DrillStringConfig, settings: AssimilationConfig, log: RigLog, *,
-               analyse_on: bool = True, system=None, progress=None) -> Estimate:
-    """Return the filter over ``log`` (module docstring); ``analyse_on=False`` runs no analysis."""
+               analyse_on: bool = True, system=None, progress=None,
+               open_loop: bool = True) -> Estimate:
+    """
+    Return the filter over ``log`` (module docstring); ``analyse_on=False`` runs no analysis.
+
+    ``open_loop=False``: without the open-loop copies (the batch holds the analysed members
+    only, as the twin's ensemble does; ``Estimate.open_loop`` stays empty and nothing can be
+    scored against it).
+    """
     spec = settings.filter
     n = spec.members
+    copies = 2 if open_loop else 1
     germs = germs_for_realizations(spec.prior_dispersion, spec.seed, range(n))
     scales = None
     if spec.parameters == 'law':
-        scales = law_scales_for_members(spec.law_prior_log_std, spec.seed, n)
-        scales = np.concatenate([scales, scales])
-    sim = Simulator(config, 2 * n, germs=np.concatenate([germs, germs]), system=system,
+        scales = np.concatenate([law_scales_for_members(spec.law_prior_log_std, spec.seed, n)]
+                                * copies)
+    sim = Simulator(config, copies * n, germs=np.concatenate([germs] * copies), system=system,
                     law_scales=scales)
     rng = np.random.default_rng(np.random.SeedSequence(spec.seed, spawn_key=(1,)))
     sequential = SequentialFilter(sim, n, settings, rng)
     guarded = GuardedSimulator(     # a stalled member: a copy of another of its half
         sim, first_member=1, name='ensemble members',
         on_stalled=lambda stalled: sequential.replace_stalled(
-            stalled, [range(n), range(n, 2 * n)]))
+            stalled, [range(n), range(n, 2 * n)][:copies]))
     dt = sim.dt
     steps = int(round(log.duration_s / dt))
     analysis_every = sequential.analysis_every
@@ -148,11 +158,13 @@ def run_filter(config: DrillStringConfig, settings: AssimilationConfig, log: Rig
             speed = sim.last.bit_speed_rad_per_s
             estimate.time_s.append(time)
             estimate.filtered.append(speed[:n].copy())
-            estimate.open_loop.append(speed[n:].copy())
+            if open_loop:
+                estimate.open_loop.append(speed[n:].copy())
             estimate.filtered_weight_on_bit_n.append(-sim.last.weight_on_bit_n[:n])
             estimate.filtered_rop_m_per_s.append(sim.last.rop_m_per_s[:n].copy())
             hole = sim.hole_depth_m
-            estimate.hole_depth_m.append((float(hole[:n].mean()), float(hole[n:].mean())))
+            estimate.hole_depth_m.append((float(hole[:n].mean()),
+                                          float(hole[n:].mean()) if open_loop else math.nan))
         if progress is not None and step % 200 == 0:
             progress(time, log.duration_s)
     estimate.resets = guarded.resets

@@ -168,7 +168,7 @@ class Filter:
     law_prior_log_std: float = 0.15
     bounds: Bounds = 'student_t'
     model_error_bit_speed_rad_per_s: float = 0.0
-    parameter_walk_std: float = 0.002
+    parameter_walk_std: float = 0.001
     parameter_inflation: float | None = 1.0
     parameter_relaxation: float | None = None
     hole_rate_window_s: float | None = None
