@@ -30,7 +30,9 @@ factors of a1 ... a5; 0 where the law cannot drill there): what a string drillin
 those means drills. It hands the block's slope to the law's parameters directly, where the
 own drilling hands it to whatever the member's dynamics do with its law (an oscillating
 member drills faster than its law's steady point: the ROP is cut at 0). It is exact for a
-truth at its steady point and biased by the truth's own oscillation otherwise.
+truth at its steady point and biased by the truth's own oscillation otherwise. The window's
+sums of bit speed and WOB are what each member went through and take no transform; its law is
+taken as it is when the window is analysed.
 
 A window is analysed at the first analysis after its end plus the hook sensor's delay; it
 needs block samples over at least half of it (else it is skipped). A member restarted by the

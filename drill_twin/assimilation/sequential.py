@@ -15,7 +15,9 @@ interpolated between the two steps around it; exact on a step), so a sample that
 late (mud-pulse telemetry, network latency, a twin lagging the rig) is compared with what
 the members predicted when it was taken. Every analysis applies its member transform to the
 buffer as well as to the state (an ensemble smoother step: exact for linear dynamics), so a
-sample analysed later sees predictions consistent with the analysed state. A sample stamped
+sample analysed later sees predictions consistent with the analysed state. With
+``localisation: motion`` each motion's block takes the transform of its own channels'
+analysis, and each channel's stored predictions that of its motion. A sample stamped
 before the buffer's start is refused (too old); one stamped beyond the batch's time waits.
 """
 from __future__ import annotations
