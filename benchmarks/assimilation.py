@@ -210,6 +210,10 @@ def main() -> None:
     print(f'steady TOB: truth {law["truth_tob_nm"]:.0f} N m, estimated '
           f'{law["estimated_tob_nm"]:.0f} ({100 * law["tob_relative_error"]:+.1f} %), prior '
           f'{law["prior_tob_nm"]:.0f} ({100 * law["prior_tob_relative_error"]:+.1f} %)')
+    for j, channel in enumerate(estimate.bias_channels):
+        print(f'estimated {channel} sensor bias: {a["bias_mean"][-1][j]:.4g} '
+              f'({a["bias_lower"][-1][j]:.4g} ... {a["bias_upper"][-1][j]:.4g}); the truth\'s '
+              f'top_torque bias {args.torque_bias:g} N m')
     low, high = law['ensemble_rop_bounds_m_per_s']
     print(f'the analysed members\' laws (mean over members, 95 % of them): ROP '
           f'{law["ensemble_rop_m_per_s"] * 1e3:.3f} mm/s ({100 * law["ensemble_rop_relative_error"]:+.1f} %; '

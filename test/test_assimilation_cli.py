@@ -97,6 +97,27 @@ def test_assimilate_estimates_the_law_when_asked(rig_log, tmp_path):
         assert f'/drill_twin/assimilation/law/{name}' in written
 
 
+def test_assimilate_estimates_a_sensor_bias_when_asked(rig_log, tmp_path):
+    """With bias_prior_std the bias is in EST.mcap (labelled by channel) and the summary."""
+    from mcap_ros2.reader import read_ros2_messages
+
+    summary, out = tmp_path / 's.json', tmp_path / 'est.mcap'
+    drill_twin('assimilate', str(rig_log), *SMALL, *SENSORS, '--members', '2',
+               '--set', 'assimilation.channels.top_torque.bias_prior_std=100.0',
+               '--out', str(out), '--summary', str(summary), '--settle', '0.1', check=True)
+    final = json.loads(summary.read_text())['sensor_bias_final']
+    assert set(final) == {'top_torque'}
+    assert final['top_torque']['lower'] <= final['top_torque']['mean'] \
+        <= final['top_torque']['upper']
+    read = {}
+    for message in read_ros2_messages(str(out), topics=[
+            f'/drill_twin/assimilation/bias/{name}' for name in ('mean', 'lower', 'upper')]):
+        read[message.channel.topic.rsplit('/', 1)[1]] = message.ros_msg
+    assert set(read) == {'mean', 'lower', 'upper'}
+    assert read['mean'].layout.dim[0].label == 'top_torque'
+    assert read['mean'].data[0] == pytest.approx(final['top_torque']['mean'], rel=1e-12)
+
+
 @pytest.mark.parametrize('args, words', [
     (['--members', '1'], ['--members', '>= 2']),
     (['--measurements', 'top_torque,colour'], ['--measurements', 'colour']),

@@ -44,9 +44,11 @@ class Estimate:
     analysis; law_mean and law_lower/upper (a, 5): their factors of a1 ... a5 (NaN unless
     the law is estimated); hole_rate_observed, hole_rate_predicted (a,): the block's slope over
     the window an analysis closed and the members' mean own slope (m/s; NaN: no window closed,
-    :mod:`.hole_rate`); filtered_weight_on_bit_n and filtered_rop_m_per_s (k, N): the analysed
-    members' WOB (N, > 0 pressing) and their bits' ROP (m/s, their own steps' velocity) at the
-    same instants as the bit speeds.
+    :mod:`.hole_rate`); bias_channels: the channels whose sensor bias is estimated, bias_mean
+    and bias_lower/upper (a, b): its mean and 95 % bounds over the analysed members (SI;
+    :mod:`.sequential`); filtered_weight_on_bit_n and filtered_rop_m_per_s (k, N): the
+    analysed members' WOB (N, > 0 pressing) and their bits' ROP (m/s, their own steps'
+    velocity) at the same instants as the bit speeds.
     """
 
     time_s: list = field(default_factory=list)
@@ -66,6 +68,10 @@ class Estimate:
     law_upper: list = field(default_factory=list)
     hole_rate_observed: list = field(default_factory=list)
     hole_rate_predicted: list = field(default_factory=list)
+    bias_channels: tuple = ()
+    bias_mean: list = field(default_factory=list)
+    bias_lower: list = field(default_factory=list)
+    bias_upper: list = field(default_factory=list)
     resets: int = 0
     replaced: int = 0
     """Members that could not be integrated any more, replaced by copies of others."""
@@ -87,6 +93,10 @@ class Estimate:
         self.law_upper.append(record.law_upper)
         self.hole_rate_observed.append(record.hole_rate_observed_m_per_s)
         self.hole_rate_predicted.append(record.hole_rate_predicted_m_per_s)
+        self.bias_channels = record.bias_channels
+        self.bias_mean.append(record.bias_mean)
+        self.bias_lower.append(record.bias_lower)
+        self.bias_upper.append(record.bias_upper)
 
     def bounds(self, which: str = 'filtered', method: str = 'student_t') -> np.ndarray:
         """(k, 3): mean, lower and upper 95 % bound of the bit speed (rad/s)."""
@@ -98,7 +108,8 @@ class Estimate:
             'time_s', 'filtered', 'open_loop', 'filtered_weight_on_bit_n',
             'filtered_rop_m_per_s', 'hole_depth_m', 'analysis_time_s', 'nis', 'measurements',
             'germ_mean', 'germ_lower', 'germ_upper', 'law_mean', 'law_lower', 'law_upper',
-            'hole_rate_observed', 'hole_rate_predicted')}
+            'hole_rate_observed', 'hole_rate_predicted', 'bias_mean', 'bias_lower',
+            'bias_upper')}
 
 
 def run_filter(config: DrillStringConfig, settings: AssimilationConfig, log: RigLog, *,
@@ -229,4 +240,10 @@ def summarise(estimate: Estimate, log: RigLog, settle_s: float,
         summary['germ_mean_final'] = [float(v) for v in a['germ_mean'][-1]]
         if np.all(np.isfinite(a['law_mean'][-1])):
             summary['law_scales_mean_final'] = [float(v) for v in a['law_mean'][-1]]
+        if estimate.bias_channels:
+            summary['sensor_bias_final'] = {
+                channel: {'mean': float(a['bias_mean'][-1][j]),
+                          'lower': float(a['bias_lower'][-1][j]),
+                          'upper': float(a['bias_upper'][-1][j])}
+                for j, channel in enumerate(estimate.bias_channels)}
     return summary

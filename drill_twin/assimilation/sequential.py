@@ -19,6 +19,15 @@ sample analysed later sees predictions consistent with the analysed state. With
 ``localisation: motion`` each motion's block takes the transform of its own channels'
 analysis, and each channel's stored predictions that of its motion. A sample stamped
 before the buffer's start is refused (too old); one stamped beyond the batch's time waits.
+
+Sensor biases: a channel's known ``bias`` (its calibration offset) is subtracted from every
+reading. A channel with ``bias_prior_std`` > 0 has a constant bias beyond it estimated with
+the state: each member carries its own (drawn centred with that standard deviation), its
+prediction of the channel is its model's value plus its bias, and the biases are analysed as
+augmented parameters (the parameters' transform, a walk of ``parameter_walk_std`` times
+their prior's standard deviation). Whether a bias is observable depends on the channels: a
+constant offset of the surface torque and the law's constant torque a5 look alike at any
+steady point (docs/ASSIMILATION.md).
 """
 from __future__ import annotations
 
@@ -61,7 +70,9 @@ class AnalysisRecord:
 
     Its model time (s), normalised innovation squared and number of measured values, the
     analysed members' germ entries (G11, G12, G22) and factors of the law's a1 ... a5: mean,
-    2.5 % and 97.5 % (NaN where they are not estimated); the hole's rate (:mod:`.hole_rate`).
+    2.5 % and 97.5 % (NaN where they are not estimated); the estimated sensor biases (SI: the
+    reading minus the true value, beyond the channel's known ``bias``), likewise; the hole's
+    rate (:mod:`.hole_rate`).
     """
 
     time_s: float
@@ -73,6 +84,11 @@ class AnalysisRecord:
     law_mean: tuple = (math.nan,) * 5
     law_lower: tuple = (math.nan,) * 5
     law_upper: tuple = (math.nan,) * 5
+    bias_channels: tuple = ()
+    """The channels whose bias the filter estimates, in the order of bias_mean/lower/upper."""
+    bias_mean: tuple = ()
+    bias_lower: tuple = ()
+    bias_upper: tuple = ()
     hole_rate_observed_m_per_s: float = math.nan
     hole_rate_predicted_m_per_s: float = math.nan
     """With ``hole_rate_window_s``: the block's slope over the window this analysis closed and
@@ -138,6 +154,15 @@ class SequentialFilter:
         self._donors = rng.spawn(1)[0]     # its own stream: the filter's draws are unchanged
         self.hole_rate = None
         """The hole's rate windows (:mod:`.hole_rate`), with ``hole_rate_window_s``."""
+        self.bias_channels = tuple(c for c in self.channels
+                                   if settings.channel(c).bias_prior_std > 0)
+        self._bias_prior_std = np.array([settings.channel(c).bias_prior_std
+                                         for c in self.bias_channels])
+        self._bias_column = {self.channels.index(c): j for j, c in enumerate(self.bias_channels)}
+        draws = np.random.default_rng(np.random.SeedSequence(spec.seed, spawn_key=(3,))
+                                      ).standard_normal((self.members, len(self.bias_channels)))
+        self.channel_bias = self._bias_prior_std * (draws - draws.mean(axis=0))
+        """(N, b): each analysed member's bias of each of ``bias_channels`` (SI)."""
         self._motion_columns = self.state.motion_columns()
         self._block_column = (self.channels.index('block_position')
                               if 'block_position' in self.channels else None)
@@ -178,6 +203,7 @@ class SequentialFilter:
                     if t < self.members and s < self.members]
             for target, source in ours:
                 self._predicted[:, target] = self._predicted[:, source]
+                self.channel_bias[target] = self.channel_bias[source]
             if self.hole_rate is not None and ours:
                 self.hole_rate.copy(*zip(*ours))
             self.replaced += len(replaced)
@@ -236,6 +262,8 @@ class SequentialFilter:
         self._times[slot] = o.time_s
         for column, channel in enumerate(self.channels):
             self._predicted[slot, :, column] = channel_values(o, channel, self.members)
+        for column, j in self._bias_column.items():
+            self._predicted[slot, :, column] += self.channel_bias[:, j]
         if self.hole_rate is not None:
             m = self.members
             self.hole_rate.after_step(o.time_s, self._predicted[slot, :, self._block_column],
@@ -282,7 +310,7 @@ class SequentialFilter:
                 if channel not in sample.values:
                     continue
                 Y.append(prediction[:, column])
-                y.append(float(sample.values[channel]))
+                y.append(float(sample.values[channel]) - self.settings.channel(channel).bias)
                 variance.append(float(self.settings.channel(channel).std(
                     prediction[:, column].mean())) ** 2)
                 motions.append(MOTION_OF[channel])
@@ -290,7 +318,8 @@ class SequentialFilter:
         if not y:
             return None
         spec = self.settings.filter
-        Y, forecast = np.stack(Y, axis=1), self.state.extract()
+        Y = np.stack(Y, axis=1)
+        forecast = np.concatenate([self.state.extract(), self.channel_bias], axis=1)
         if not (np.all(np.isfinite(Y)) and np.all(np.isfinite(forecast))):
             self._refuse(f'analysis at {now:.3f} s skipped: the members\' predictions or '
                          f'state are not finite ({used} sample(s) unused)')
@@ -308,36 +337,48 @@ class SequentialFilter:
             self._refuse(f'analysis at {now:.3f} s skipped: {error} ({used} sample(s) unused)')
             return None
         analysed = result.apply(forecast)
-        count = self.state.parameter_count
-        if count and result.parameter_transform is not None:
-            analysed[:, -count:] = result.parameter_transform @ forecast[:, -count:]
+        count, size = self.state.parameter_count, self.state.size
+        parameters = slice(size - count, None)        # the law's, then the sensors' biases
+        if result.parameter_transform is not None:
+            analysed[:, parameters] = result.parameter_transform @ forecast[:, parameters]
         if local is not None:
             for motion, columns in self._motion_columns.items():
                 analysed[:, columns] = local[motion] @ forecast[:, columns]
         sigma = spec.model_error_bit_speed_rad_per_s
         if sigma > 0:                         # additive inflation: centred, the mean unchanged
             kicks = sigma * self.rng.standard_normal(analysed.shape[0])
-            analysed += np.outer(kicks - kicks.mean(), self.state.bit_speed_direction())
+            analysed[:, :size] += np.outer(kicks - kicks.mean(),
+                                           self.state.bit_speed_direction())
         walk = spec.parameter_walk_std
         if walk > 0 and count:                # the same for the parameters: centred kicks
             kicks = walk * self.rng.standard_normal((analysed.shape[0], count))
-            analysed[:, -count:] += kicks - kicks.mean(axis=0)
+            analysed[:, size - count:size] += kicks - kicks.mean(axis=0)
+        if walk > 0 and self.bias_channels:   # the biases' walk, relative to their prior
+            kicks = walk * self._bias_prior_std * self.rng.standard_normal(
+                self.channel_bias.shape)
+            analysed[:, size:] += kicks - kicks.mean(axis=0)
         if not np.all(np.isfinite(analysed)):
             self._refuse(f'analysis at {now:.3f} s skipped: it is not finite '
                          f'({used} sample(s) unused)')
             return None
-        self.state.write(analysed)
+        self.state.write(analysed[:, :size])
+        self.channel_bias = analysed[:, size:].copy()
         if self.hole_rate is not None:
             self.hole_rate.transform(result.transform if local is None else local['axial'])
             self.hole_rate.after_write()
         self.samples_used += used
-        # The smoother step: predictions still to be compared with late samples.
+        # The smoother step: predictions still to be compared with late samples (a biased
+        # channel's: the model's part transformed as the state, plus the member's new bias).
+        for column, j in self._bias_column.items():
+            self._predicted[:, :, column] -= forecast[:, size + j]
         if local is None:
             self._predicted = np.matmul(result.transform, self._predicted)     # (t, N, c)
         else:                                 # a new buffer, as above: views stay as they were
             self._predicted = np.stack(
                 [np.matmul(local[MOTION_OF[channel]], self._predicted[:, :, column, None])[..., 0]
                  for column, channel in enumerate(self.channels)], axis=2)
+        for column, j in self._bias_column.items():
+            self._predicted[:, :, column] += self.channel_bias[:, j]
         self.analyses += 1
         record = self._summary(now, result, rates[-1] if rates else None)
         self.history.append(record)
@@ -379,12 +420,15 @@ class SequentialFilter:
             germ = _mean_and_bounds(self.germ_entries())
         if self.state.parameters == 'law':
             law = _mean_and_bounds(self.state.law_scales())
+        bias = _mean_and_bounds(self.channel_bias) if self.bias_channels else ((),) * 3
         observed, predicted = ((rate.observed_m_per_s, float(rate.predicted.mean()))
                                if rate is not None else (math.nan, math.nan))
         return AnalysisRecord(time_s=float(time_s), nis=float(result.nis),
                               measurements=result.measurements, germ_mean=germ[0],
                               germ_lower=germ[1], germ_upper=germ[2], law_mean=law[0],
                               law_lower=law[1], law_upper=law[2],
+                              bias_channels=self.bias_channels, bias_mean=bias[0],
+                              bias_lower=bias[1], bias_upper=bias[2],
                               hole_rate_observed_m_per_s=observed,
                               hole_rate_predicted_m_per_s=predicted)
 

@@ -44,17 +44,25 @@ class Channel:
     One measured quantity.
 
     Noise standard deviation noise_std + noise_relative |value| (combined in quadrature; SI
-    units of the quantity) and a constant bias (SI).
+    units of the quantity) and a constant bias (SI): the rig's sensor adds it to its readings;
+    the filter subtracts it from them (a known calibration offset; 0: none known).
+    bias_prior_std (SI, filter only): the standard deviation of the prior of a constant bias
+    beyond ``bias`` that the filter estimates with the state, one per member (an augmented
+    parameter; 0: not estimated).
     """
 
     noise_std: float
     noise_relative: float = 0.0
     bias: float = 0.0
+    bias_prior_std: float = 0.0
 
     def __post_init__(self):
         _check(self.noise_std >= 0, 'noise_std', 'must be >= 0', self.noise_std)
         _check(self.noise_relative >= 0, 'noise_relative', 'must be >= 0',
                self.noise_relative)
+        _check(math.isfinite(self.bias), 'bias', 'must be finite', self.bias)
+        _check(math.isfinite(self.bias_prior_std) and self.bias_prior_std >= 0,
+               'bias_prior_std', 'must be >= 0', self.bias_prior_std)
 
     def std(self, value):
         """Return the noise standard deviation at ``value`` (same shape)."""

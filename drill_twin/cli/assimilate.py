@@ -10,7 +10,9 @@ model time from 0 (ns):
   analysis;
 - /drill_twin/assimilation/germ/{mean,lower,upper}: the estimated bit-rock germ (std_msgs/
   Float64MultiArray [G11, G12, G22]) after each analysis, and with parameters 'law'
-  /drill_twin/assimilation/law/{mean,lower,upper}: the factors of the law's a1 ... a5;
+  /drill_twin/assimilation/law/{mean,lower,upper}: the factors of the law's a1 ... a5, and
+  /drill_twin/assimilation/bias/{mean,lower,upper} the estimated sensor biases (SI, one
+  dimension labelled with their channels) when a channel has ``bias_prior_std`` > 0;
 - /diagnostics: per analysis the normalised innovation squared and its count of
   measurements (diagnostic_msgs/DiagnosticArray, name 'drill_twin: assimilation');
 - the log's truth (/rig/truth/bit_state), when it has one.
@@ -123,6 +125,7 @@ def write_estimate(path, estimate, log, method: str = 'student_t') -> None:
 
     joint_state = import_message_class('sensor_msgs/msg/JointState')
     array = import_message_class('std_msgs/msg/Float64MultiArray')
+    dimension = import_message_class('std_msgs/msg/MultiArrayDimension')
     diag_array = import_message_class('diagnostic_msgs/msg/DiagnosticArray')
     diag_status = import_message_class('diagnostic_msgs/msg/DiagnosticStatus')
     key_value = import_message_class('diagnostic_msgs/msg/KeyValue')
@@ -150,6 +153,13 @@ def write_estimate(path, estimate, log, method: str = 'student_t') -> None:
                 for name in ('mean', 'lower', 'upper'):
                     messages.append((t, f'{PREFIX}/{estimated}/{name}', array(
                         data=[float(v) for v in a[f'{estimated}_{name}'][k]])))
+        if estimate.bias_channels:                  # labelled by channel, as the twin's
+            for name in ('mean', 'lower', 'upper'):
+                message = array(data=[float(v) for v in a[f'bias_{name}'][k]])
+                message.layout.dim = [dimension(label=','.join(estimate.bias_channels),
+                                                size=len(estimate.bias_channels),
+                                                stride=len(estimate.bias_channels))]
+                messages.append((t, f'{PREFIX}/bias/{name}', message))
         status = diag_status(level=b'\x00', name='drill_twin: assimilation',
                              message='analysis', hardware_id='drill_twin')
         status.values = [key_value(key='nis', value=f'{a["nis"][k]:.6g}'),

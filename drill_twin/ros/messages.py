@@ -354,6 +354,22 @@ def law_messages(record):
         (itf.ASSIMILATION_LAW_UPPER, record.law_upper))]
 
 
+def bias_messages(record):
+    """
+    Return (topic, message) of an analysis's estimated sensor biases.
+
+    The analysed members' mean, 2.5 % and 97.5 % (std_msgs/Float64MultiArray, SI, one
+    dimension labelled with the channels, e.g. 'top_torque'); none when no bias is estimated.
+    """
+    if not record.bias_channels:
+        return []
+    label = ','.join(record.bias_channels)
+    return [(topic, _labelled_array(label, values)) for topic, values in (
+        (itf.ASSIMILATION_BIAS_MEAN, record.bias_mean),
+        (itf.ASSIMILATION_BIAS_LOWER, record.bias_lower),
+        (itf.ASSIMILATION_BIAS_UPPER, record.bias_upper))]
+
+
 def clock(time_ns: int) -> Clock:
     """rosgraph_msgs/Clock at ``time_ns`` (ns)."""
     return Clock(clock=stamp(time_ns))
@@ -416,7 +432,9 @@ def publications(stations_m, *, ensemble: bool, clock: bool, tf: bool,
     if assimilation:
         for topic in (itf.ASSIMILATION_GERM_MEAN, itf.ASSIMILATION_GERM_LOWER,
                       itf.ASSIMILATION_GERM_UPPER, itf.ASSIMILATION_LAW_MEAN,
-                      itf.ASSIMILATION_LAW_LOWER, itf.ASSIMILATION_LAW_UPPER):
+                      itf.ASSIMILATION_LAW_LOWER, itf.ASSIMILATION_LAW_UPPER,
+                      itf.ASSIMILATION_BIAS_MEAN, itf.ASSIMILATION_BIAS_LOWER,
+                      itf.ASSIMILATION_BIAS_UPPER):
             topics[topic] = (Float64MultiArray, state)
     for x_m in stations_m:
         topics[itf.vibration_imu_topic(x_m)] = (Imu, state)

@@ -506,10 +506,11 @@ class TwinNode(Node):
                 self._report(event.level, event.message)
         for record in snapshot.analyses:
             self._innovations.append((record.nis, record.measurements))
-        if snapshot.analyses:                       # the latest analysis's germ (and law)
+        if snapshot.analyses:                       # the latest analysis's parameters
             latest = snapshot.analyses[-1]
             for topic, message in (messages.germ_messages(latest)
-                                   + messages.law_messages(latest)):
+                                   + messages.law_messages(latest)
+                                   + messages.bias_messages(latest)):
                 self._publish(topic, message, now)
         if self.log and not self.log.open:          # a write failed (disk full, ...)
             self._on_log_failure(now)
