@@ -135,9 +135,13 @@ def synthetic_messages(duration_s: float = 10.0, rate_hz: float = 100.0,
                                       germ_mean=(1.0, 0.01 * step, 1.1),
                                       germ_lower=(0.9, -0.1, 1.0), germ_upper=(1.1, 0.1, 1.2),
                                       law_mean=(1.0, 1.0, 1.0, 1.0 + 0.001 * step, 1.0),
-                                      law_lower=(0.9,) * 5, law_upper=(1.1,) * 5)
+                                      law_lower=(0.9,) * 5, law_upper=(1.1,) * 5,
+                                      bias_channels=('top_torque',),
+                                      bias_mean=(100.0 + step,), bias_lower=(50.0 + step,),
+                                      bias_upper=(150.0 + step,))
             for topic, message in (messages.germ_messages(analysis)
-                                   + messages.law_messages(analysis)):
+                                   + messages.law_messages(analysis)
+                                   + messages.bias_messages(analysis)):
                 yield TimedMessage(topic, message, t_ns)
         plan = messages.TickPlan(kpis=True, ensemble_stamp_ns=t_ns, clock=True)
         for topic, message in messages.tick_messages(snapshot, stations, t_ns, plan):

@@ -187,3 +187,32 @@ def test_live_view_sends_the_estimated_law_when_the_filter_estimates_it():
     assert np.allclose(times, [0.1, 0.2, 0.3])
     assert np.allclose(np.ravel(a4), 1.0 + times)
     assert np.allclose(np.ravel(rec.rows('ensemble/law/a2/upper')[1]), 1.1)
+
+
+def test_live_view_sends_the_estimated_sensor_bias_labelled_by_channel():
+    """An analysis with a sensor bias (bias_prior_std) sends it under its channel's name."""
+    import dataclasses
+
+    from drill_twin.assimilation.sequential import AnalysisRecord
+    rec, clock = Capture(), FakeClock()
+    view = LiveView((), recording=rec, clock=clock, assimilation=True,
+                    bias_channels=('top_torque',))
+    for i in range(1, 31):
+        clock.now += 0.01
+        t = i * 0.01
+        analyses = (AnalysisRecord(time_s=t, nis=1.0, measurements=2, germ_mean=(1.0, 0.0, 1.0),
+                                   germ_lower=(1.0, 0.0, 1.0), germ_upper=(1.0, 0.0, 1.0),
+                                   bias_channels=('top_torque',), bias_mean=(100.0 * t,),
+                                   bias_lower=(-5.0,), bias_upper=(50.0,)),
+                    ) if i % 10 == 0 else ()
+        view.update(dataclasses.replace(snapshot(t, stations=0), analyses=analyses))
+    view.close()
+    times, mean = rec.rows('ensemble/bias/top_torque/mean')
+    assert np.allclose(times, [0.1, 0.2, 0.3])
+    assert np.allclose(np.ravel(mean), 100.0 * times)
+    assert np.allclose(np.ravel(rec.rows('ensemble/bias/top_torque/lower')[1]), -5.0)
+    titles = ' '.join(str(v.name) for v in layout._ensemble_tab(
+        True, False, ('top_torque',)).contents)
+    assert 'Estimated top_torque sensor bias (N m)' in titles
+    assert 'sensor bias' not in ' '.join(str(v.name)
+                                         for v in layout._ensemble_tab(True).contents)

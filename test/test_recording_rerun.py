@@ -140,6 +140,13 @@ def test_cdr_decoders_match_rclpy(log_path):
     from rclpy.serialization import serialize_message
 
     assert cdr.float64_multi_array(serialize_message(message)) == (1.5, -2.0, 3.25)
+    assert cdr.float64_multi_array_labels(serialize_message(message)) == (
+        'node depth 0.0 m', 'x')
+    message.layout.dim = [dimension(label='ab', size=3, stride=3),      # unaligned string ends
+                          dimension(label='top_torque,bit_speed', size=1, stride=1)]
+    assert cdr.float64_multi_array_labels(serialize_message(message)) == (
+        'ab', 'top_torque,bit_speed')
+    assert cdr.float64_multi_array(serialize_message(message)) == (1.5, -2.0, 3.25)
     message.data = []
     assert cdr.float64_multi_array(serialize_message(message)) == ()
 
@@ -300,6 +307,8 @@ def test_save_rrd_is_self_contained_with_blueprint(log_path, rerun_env, tmp_path
                            ('/ensemble/germ/g22/upper', 'Scalars:scalars'),
                            ('/ensemble/law/a4/mean', 'Scalars:scalars'),
                            ('/ensemble/law/a1/lower', 'Scalars:scalars'),
+                           ('/ensemble/bias/top_torque/mean', 'Scalars:scalars'),
+                           ('/ensemble/bias/top_torque/upper', 'Scalars:scalars'),
                            ('/lateral/x600m/orbit', 'LineStrips2D:strips'),
                            ('/lateral/x1200m/pipe', 'Ellipses2D:centers'),
                            ('/lateral/x1200m/wall', 'Ellipses2D:half_sizes'),
@@ -318,6 +327,7 @@ def test_save_rrd_is_self_contained_with_blueprint(log_path, rerun_env, tmp_path
                              timeout=60).stdout
     for text in ('run time', 'Orbit at 1200 m', 'Bit speed (rpm)', 'Surface torque (kN·m)',
                  'Estimated bit-rock germ', 'Law factors a1..a5',
+                 'Estimated top_torque sensor bias (N m)',
                  'Wall contact force (kN) vs depth (m)', layout.APPLICATION_ID):
         assert text in verbose, text
     assert 'message_log_time' not in verbose              # no wall-clock timeline

@@ -154,8 +154,7 @@ class SequentialFilter:
         self._donors = rng.spawn(1)[0]     # its own stream: the filter's draws are unchanged
         self.hole_rate = None
         """The hole's rate windows (:mod:`.hole_rate`), with ``hole_rate_window_s``."""
-        self.bias_channels = tuple(c for c in self.channels
-                                   if settings.channel(c).bias_prior_std > 0)
+        self.bias_channels = settings.estimated_bias_channels()
         self._bias_prior_std = np.array([settings.channel(c).bias_prior_std
                                          for c in self.bias_channels])
         self._bias_column = {self.channels.index(c): j for j, c in enumerate(self.bias_channels)}

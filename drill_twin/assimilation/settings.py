@@ -280,6 +280,11 @@ class AssimilationConfig:
     def sensor_of(self, name: str) -> Sensor:
         return getattr(self.sensors, SENSOR_OF[name])
 
+    def estimated_bias_channels(self) -> tuple[str, ...]:
+        """Return the filter's channels whose bias it estimates (``bias_prior_std`` > 0)."""
+        return tuple(c for c in self.filter.measurements
+                     if self.channel(c).bias_prior_std > 0)
+
 
 def default_path() -> Path:
     return config_directory() / DEFAULT_FILE

@@ -96,6 +96,20 @@ def float64(data: bytes) -> float:
     return struct.unpack_from('<d', data, _HEADER)[0]
 
 
+def float64_multi_array_labels(data: bytes) -> tuple[str, ...]:
+    """std_msgs/Float64MultiArray: the labels of its layout's dimensions."""
+    _check(data)
+    position = _HEADER
+    (dims,) = _U32.unpack_from(data, position)
+    position += 4
+    labels = []
+    for _ in range(dims):
+        end = _string_end(data, position)
+        labels.append(data[_align(position, 4) + 4:end - 1].decode())
+        position = _align(end, 4) + 8
+    return tuple(labels)
+
+
 def float64_multi_array(data: bytes) -> tuple[float, ...]:
     """std_msgs/Float64MultiArray: the data (the layout is skipped)."""
     _check(data)

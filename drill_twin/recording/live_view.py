@@ -43,13 +43,14 @@ class LiveView:
     :param clock: wall clock (s) for the send rate (tests pass a fake one).
     :param assimilation: the twin assimilates: the ensemble tab shows the estimated germ.
     :param law: its filter estimates the law's coefficients too: the ensemble tab shows them.
+    :param bias_channels: the channels whose sensor bias its filter estimates (shown likewise).
     """
 
     def __init__(self, stations_m: Sequence[float], config=None, *, recording=None,
                  sample_rate_hz: float = 50.0, profile_rate_hz: float = 10.0,
                  send_rate_hz: float = 4.0, active_tab: int | str = 0,
                  clock: Callable[[], float] = time.monotonic, assimilation: bool = False,
-                 law: bool = False):
+                 law: bool = False, bias_channels=()):
         import rerun as rr
 
         if config is None:
@@ -59,7 +60,7 @@ class LiveView:
         self.geometry = layout.StringGeometry.from_config(config, stations_m)
         self.blueprint = layout.twin_blueprint(self.geometry, active_tab=active_tab,
                                                follow=True, assimilation=assimilation,
-                                               law=law)
+                                               law=law, bias_channels=bias_channels)
         self.recording = recording if recording is not None else rr.RecordingStream(
             layout.APPLICATION_ID)
         self.sample_period_s = 1.0 / sample_rate_hz
@@ -110,7 +111,7 @@ class LiveView:
     # -- data --------------------------------------------------------------------------------
     def _clear(self) -> None:
         self._rows: dict[str, list] = {'bit': [], 'top': [], 'kpi': [], 'ensemble': [],
-                                       'germ': [], 'law': [], 'station': [], 'profile': [],
+                                       'germ': [], 'law': [], 'bias': [], 'station': [], 'profile': [],
                                        'health': []}
         self._events: list[tuple[float, str, str]] = []
         self._commands: dict[str, list] = {'speed': [], 'hook': []}
@@ -132,6 +133,10 @@ class LiveView:
             if all(np.isfinite(record.law_mean)):
                 self._rows['law'].append((record.time_s, *record.law_mean, *record.law_lower,
                                           *record.law_upper))
+            if record.bias_channels:
+                self._rows['bias'].append((record.bias_channels, record.time_s,
+                                           *record.bias_mean, *record.bias_lower,
+                                           *record.bias_upper))
         if t >= self._next_sample:
             self._next_sample = t + self.sample_period_s - 1e-9
             self._sample(snapshot, t)
@@ -209,6 +214,12 @@ class LiveView:
         if rows['law']:
             law = np.asarray(rows['law'], dtype=float)
             layout.send_law(rec, law[:, 0], law[:, 1:6], law[:, 6:11], law[:, 11:16])
+        if rows['bias']:
+            channels = rows['bias'][-1][0]
+            bias = np.asarray([row[1:] for row in rows['bias'] if row[0] == channels])
+            b = len(channels)
+            layout.send_bias(rec, bias[:, 0], channels, bias[:, 1:1 + b],
+                             bias[:, 1 + b:1 + 2 * b], bias[:, 1 + 2 * b:1 + 3 * b])
         if rows['station']:
             station = np.asarray(rows['station'])
             for k in range(len(geometry.stations_m)):

@@ -149,6 +149,10 @@ LAW_ENTRIES = {'a1': ('a1', BLUE), 'a2': ('a2', ORANGE), 'a3': ('a3', GREEN),
                'a4': ('a4', RED), 'a5': ('a5', PURPLE)}
 """The estimated factors of the law's a1 ... a5 (assimilation, parameters 'law'), in message
 order, and their colours."""
+CHANNEL_UNITS = {'top_speed': 'rad/s', 'top_torque': 'N m', 'hook_load': 'N',
+                 'block_position': 'm', 'bit_speed': 'rad/s', 'torque_on_bit': 'N m',
+                 'weight_on_bit': 'N'}
+"""The SI unit of each measured channel (assimilation.measurements), for the sensor biases."""
 
 
 def log_styles(recording, geometry: StringGeometry) -> None:
@@ -317,6 +321,26 @@ def send_law(recording, t_s, mean, lower, upper) -> None:
     for column, key in enumerate(LAW_ENTRIES):
         for bound, values in (('mean', mean), ('lower', lower), ('upper', upper)):
             _scalars(recording, f'ensemble/law/{key}/{bound}', t_s,
+                     np.asarray(values, dtype=float)[:, column])
+
+
+def send_bias(recording, t_s, channels, mean, lower, upper) -> None:
+    """
+    Send the estimated sensor biases of the analyses (assimilation, ``bias_prior_std``).
+
+    ``channels``: their names in column order; arrays (n, len(channels)), SI: the analysed
+    members' mean, 2.5 % and 97.5 %. Each channel's series styles are logged with them.
+    """
+    import rerun as rr
+
+    for column, channel in enumerate(channels):
+        recording.log(f'ensemble/bias/{channel}/mean', rr.SeriesLines(
+            names=f'{channel} bias (mean)', colors=BLUE, widths=2.0), static=True)
+        for bound in ('lower', 'upper'):
+            recording.log(f'ensemble/bias/{channel}/{bound}', rr.SeriesLines(
+                names=f'{channel} bias (95 %)', colors=BLUE, widths=0.8), static=True)
+        for bound, values in (('mean', mean), ('lower', lower), ('upper', upper)):
+            _scalars(recording, f'ensemble/bias/{channel}/{bound}', t_s,
                      np.asarray(values, dtype=float)[:, column])
 
 
@@ -570,7 +594,7 @@ def _lateral_tab(geometry: StringGeometry):
         row_shares=[3, 1], name=TAB_TITLES['lateral'])
 
 
-def _ensemble_tab(assimilation: bool = False, law: bool = False):
+def _ensemble_tab(assimilation: bool = False, law: bool = False, bias_channels=()):
     import rerun.blueprint as rrb
 
     views = []
@@ -589,6 +613,10 @@ def _ensemble_tab(assimilation: bool = False, law: bool = False):
             'mean, 95 % (thin)',
             [f'ensemble/law/{key}/{b}' for key in LAW_ENTRIES
              for b in ('lower', 'upper', 'mean')]))
+    for channel in bias_channels if assimilation else ():
+        views.append(_series(
+            f'Estimated {channel} sensor bias ({CHANNEL_UNITS.get(channel, "SI")}): mean, '
+            '95 % (thin)', [f'ensemble/bias/{channel}/{b}' for b in ('lower', 'upper', 'mean')]))
     return rrb.Vertical(*views, name=TAB_TITLES['ensemble'])
 
 
@@ -611,7 +639,8 @@ def _diagnostics_tab():
 
 
 def twin_blueprint(geometry: StringGeometry, *, active_tab: int | str = 0,
-                   follow: bool = True, assimilation: bool = False, law: bool = False):
+                   follow: bool = True, assimilation: bool = False, law: bool = False,
+                   bias_channels=()):
     """
     Build the rerun blueprint of the twin's views (tabs :data:`TABS`).
 
@@ -620,11 +649,12 @@ def twin_blueprint(geometry: StringGeometry, *, active_tab: int | str = 0,
         recorded run, moving with a live one).
     :param assimilation: the ensemble tab shows the estimated germ too.
     :param law: and the estimated factors of the law's coefficients (parameters 'law').
+    :param bias_channels: and the estimated biases of these channels' sensors.
     """
     import rerun.blueprint as rrb
 
     tabs = rrb.Tabs(_bit_tab(), _driller_tab(), _lateral_tab(geometry),
-                    _ensemble_tab(assimilation, law),
+                    _ensemble_tab(assimilation, law, tuple(bias_channels)),
                     _diagnostics_tab(), active_tab=tab_index(active_tab))
     return rrb.Blueprint(tabs,
                          rrb.TimePanel(timeline=TIMELINE, state='collapsed',

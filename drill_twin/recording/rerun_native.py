@@ -32,6 +32,9 @@ GERM_TOPICS = (itf.ASSIMILATION_GERM_MEAN, itf.ASSIMILATION_GERM_LOWER,
 """The estimated germ (assimilation): mean, 2.5 % and 97.5 % of [G11, G12, G22]."""
 LAW_TOPICS = (itf.ASSIMILATION_LAW_MEAN, itf.ASSIMILATION_LAW_LOWER, itf.ASSIMILATION_LAW_UPPER)
 """The estimated factors of the law's a1 ... a5 (parameters 'law'): mean, 2.5 %, 97.5 %."""
+BIAS_TOPICS = (itf.ASSIMILATION_BIAS_MEAN, itf.ASSIMILATION_BIAS_LOWER,
+               itf.ASSIMILATION_BIAS_UPPER)
+"""The estimated sensor biases (labelled by channel): mean, 2.5 %, 97.5 %."""
 HEALTH_NAME = 'drill_twin: twin health'
 
 
@@ -79,6 +82,8 @@ class RunColumns:
     topics: set[str] = field(default_factory=set)
     rows: dict[str, list] = field(default_factory=lambda: defaultdict(list))
     texts: dict[str, list] = field(default_factory=lambda: defaultdict(list))
+    bias_channels: tuple[str, ...] = ()
+    """The channels of the estimated sensor biases (the bias topics' label)."""
 
     def array(self, key: str, width: int) -> np.ndarray:
         """Return the rows of series ``key`` as numbers, shape (n, width); (0, width) if none."""
@@ -120,6 +125,14 @@ def read_run(files: Sequence[Path], stations_m: Sequence[float] | None = None) -
                 run.rows['top'].append(((stamp - epoch) * 1e-9, velocity[0], effort[0],
                                         effort[1]))
             elif topic in GERM_TOPICS or topic in LAW_TOPICS:
+                run.rows[topic].append((log_s, *cdr.float64_multi_array(data)))
+            elif topic in BIAS_TOPICS:
+                labels = cdr.float64_multi_array_labels(data)
+                channels = tuple(labels[0].split(',')) if labels and labels[0] else ()
+                if channels and channels != run.bias_channels:   # one set of channels a run
+                    run.bias_channels = channels
+                    for bias_topic in BIAS_TOPICS:
+                        run.rows.pop(bias_topic, None)
                 run.rows[topic].append((log_s, *cdr.float64_multi_array(data)))
             elif topic in (itf.ENSEMBLE_MEAN, itf.ENSEMBLE_LOWER, itf.ENSEMBLE_UPPER):
                 stamp, position, velocity, effort = cdr.joint_state(data)
@@ -276,6 +289,12 @@ def _send_germ(recording, run: RunColumns) -> None:
     n = min(mean.shape[0], lower.shape[0], upper.shape[0])
     if n:
         layout.send_law(recording, mean[:n, 0], mean[:n, 1:], lower[:n, 1:], upper[:n, 1:])
+    b = len(run.bias_channels)
+    mean, lower, upper = (run.array(topic, 1 + b) for topic in BIAS_TOPICS)
+    n = min(mean.shape[0], lower.shape[0], upper.shape[0])
+    if n and b:
+        layout.send_bias(recording, mean[:n, 0], run.bias_channels, mean[:n, 1:],
+                         lower[:n, 1:], upper[:n, 1:])
 
 
 def write_rrd(source, rrd_path: str | os.PathLike, stations_m: Sequence[float] | None = None,
@@ -296,7 +315,8 @@ def write_rrd(source, rrd_path: str | os.PathLike, stations_m: Sequence[float] |
     geometry = geometry_of(run, stations_m)
     blueprint = layout.twin_blueprint(geometry, active_tab=active_tab,
                                       assimilation=bool(run.rows.get(itf.ASSIMILATION_GERM_MEAN)),
-                                      law=bool(run.rows.get(itf.ASSIMILATION_LAW_MEAN)))
+                                      law=bool(run.rows.get(itf.ASSIMILATION_LAW_MEAN)),
+                                      bias_channels=run.bias_channels)
     rrd_path = Path(rrd_path)
     recording = rr.RecordingStream(application_id, recording_id=files[0].stem)
     try:

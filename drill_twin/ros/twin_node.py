@@ -778,7 +778,9 @@ def _run(ros_args: list[str], view: str | None = None, console: bool = False) ->
             node.live_view = LiveView(node.stations_m, node.config,
                                       assimilation=node.engine.assimilating,
                                       law=settings is not None
-                                      and settings.filter.parameters == 'law')
+                                      and settings.filter.parameters == 'law',
+                                      bias_channels=() if settings is None
+                                      else settings.estimated_bias_channels())
             node.live_view.spawn_viewer(web=(view == 'web'))
         if console:
             from drill_twin.cli.console import StatusPrinter
