@@ -38,6 +38,26 @@ def _reading(stamp, name, position=(), velocity=(), effort=()):
     return message
 
 
+def _feeder(twin, rig, torque_offset_nm: float = 0.0):
+    """Return a function that sends the rig's reading of the latest top state heard (10 Hz)."""
+    sent = 0
+
+    def feed():
+        nonlocal sent
+        tops = twin.received[itf.TOP_STATE]
+        if not tops or stamp_ns(tops[-1]) < (sent + 1) * 100_000_000:
+            return False
+        top = tops[-1]
+        sent = stamp_ns(top) // 100_000_000
+        torque, block = top.effort[0] + torque_offset_nm, top.position[1]
+        rig['/rig/top_drive'].publish(_reading(stamp_ns(top), 'top_drive',
+                                               velocity=[top.velocity[0]], effort=[torque]))
+        rig['/rig/hook'].publish(_reading(stamp_ns(top), 'hook', position=[block],
+                                          effort=[top.effort[1]]))
+        return False
+    return feed
+
+
 def test_the_twin_assimilates_the_rigs_surface_measurements(twin_factory, tmp_path):  # noqa: F811
     """
     The rig's surface torque and block position are analysed.
@@ -55,22 +75,7 @@ def test_the_twin_assimilates_the_rigs_surface_measurements(twin_factory, tmp_pa
                         log_dir=tmp_path / 'logs')
     rig = _rig_publishers(twin)
     assert set(twin.node.measurement_topics) == {'/rig/top_drive', '/rig/hook'}
-    sent = 0
-
-    def feed():
-        """Send the rig's reading of the latest top state heard (10 Hz of twin time)."""
-        nonlocal sent
-        tops = twin.received[itf.TOP_STATE]
-        if not tops or stamp_ns(tops[-1]) < (sent + 1) * 100_000_000:
-            return False
-        top = tops[-1]
-        sent = stamp_ns(top) // 100_000_000
-        torque, block = top.effort[0], top.position[1]
-        rig['/rig/top_drive'].publish(_reading(stamp_ns(top), 'top_drive',
-                                               velocity=[top.velocity[0]], effort=[torque]))
-        rig['/rig/hook'].publish(_reading(stamp_ns(top), 'hook', position=[block],
-                                          effort=[top.effort[1]]))
-        return False
+    feed = _feeder(twin, rig)
 
     twin.spin_until(lambda: feed() or len(twin.received[itf.ASSIMILATION_GERM_MEAN]) >= 5,
                     'five estimated germs')
@@ -151,3 +156,32 @@ def test_without_measurements_the_twin_says_it_runs_in_open_loop(twin_factory): 
                 if s.level == DiagnosticStatus.WARN and 'open loop' in s.message]
     twin.spin_until(warned, 'a WARN saying the ensemble runs in open loop')
     assert 'no measurement sample arrived on /rig/top_drive, /rig/hook' in warned()[0].message
+
+
+def test_the_twin_publishes_the_estimated_sensor_bias(twin_factory, tmp_path):  # noqa: F811
+    """
+    With a channel's bias_prior_std in assimilation_config its bias is estimated and published.
+
+    The rig reads the mean model's surface torque 300 N m high: three estimates on
+    /drill_twin/assimilation/bias/{mean,lower,upper}, labelled 'top_torque', the last one
+    the filter's members' mean, and moved towards the offset from the centred prior.
+    """
+    settings = tmp_path / 'assimilation.yaml'
+    settings.write_text('assimilation:\n  channels:\n    top_torque: {bias_prior_std: 200.0}\n')
+    twin = twin_factory(ensemble_members=6, ensemble_dispersion=0.2, ensemble_process=False,
+                        assimilation_enabled=True, assimilation_config=str(settings),
+                        duration_s=0.0, log_enabled=False)
+    feed = _feeder(twin, _rig_publishers(twin), torque_offset_nm=300.0)
+    twin.spin_until(lambda: feed() or len(twin.received[itf.ASSIMILATION_BIAS_MEAN]) >= 3,
+                    'three estimated biases')
+    twin.node.timer.cancel()                        # the twin stands still: hear all it sent
+    for _ in range(20):
+        twin.executor.spin_once(timeout_sec=0.05)
+    means = twin.received[itf.ASSIMILATION_BIAS_MEAN]
+    assert all(m.layout.dim[0].label == 'top_torque' for m in means)
+    bias = twin.node.engine.ensemble_runner.filter.channel_bias[:, 0]
+    assert abs(means[-1].data[0] - bias.mean()) <= 1e-9 * 300
+    assert means[-1].data[0] > 50.0                 # from 0 towards the 300 N m offset
+    lower = twin.received[itf.ASSIMILATION_BIAS_LOWER][-1].data[0]
+    upper = twin.received[itf.ASSIMILATION_BIAS_UPPER][-1].data[0]
+    assert lower <= means[-1].data[0] <= upper
