@@ -103,6 +103,7 @@ def test_assimilate_estimates_a_sensor_bias_when_asked(rig_log, tmp_path):
 
     summary, out = tmp_path / 's.json', tmp_path / 'est.mcap'
     drill_twin('assimilate', str(rig_log), *SMALL, *SENSORS, '--members', '2',
+               '--measurements', 'top_torque,block_position,torque_on_bit',
                '--set', 'assimilation.channels.top_torque.bias_prior_std=100.0',
                '--out', str(out), '--summary', str(summary), '--settle', '0.1', check=True)
     final = json.loads(summary.read_text())['sensor_bias_final']

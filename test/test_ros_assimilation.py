@@ -167,7 +167,9 @@ def test_the_twin_publishes_the_estimated_sensor_bias(twin_factory, tmp_path):  
     the filter's members' mean, and moved towards the offset from the centred prior.
     """
     settings = tmp_path / 'assimilation.yaml'
-    settings.write_text('assimilation:\n  channels:\n    top_torque: {bias_prior_std: 200.0}\n')
+    settings.write_text('assimilation:\n'
+                        '  filter: {measurements: [top_torque, block_position, torque_on_bit]}\n'
+                        '  channels:\n    top_torque: {bias_prior_std: 200.0}\n')
     twin = twin_factory(ensemble_members=6, ensemble_dispersion=0.2, ensemble_process=False,
                         assimilation_enabled=True, assimilation_config=str(settings),
                         duration_s=0.0, log_enabled=False)

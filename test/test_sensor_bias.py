@@ -30,12 +30,16 @@ def config():
 
 
 def _filter(config, overrides, steps=10):
-    """Return a 6-member filter of the surface torque (no walk or model error), steps run."""
+    """
+    Return a 6-member filter of the surface torque and TOB (no walk or model error), steps run.
+
+    (The TOB makes a surface torque's bias observable with the law estimated: settings.)
+    """
     settings = load_assimilation(None, [
         f'assimilation.filter.members={MEMBERS}', 'assimilation.filter.method=etkf',
         'assimilation.filter.model_error_bit_speed_rad_per_s=0.0',
         'assimilation.filter.parameter_walk_std=0.0',
-        'assimilation.filter.measurements=[top_torque]', *overrides])
+        'assimilation.filter.measurements=[top_torque,torque_on_bit]', *overrides])
     simulator = Simulator(config, MEMBERS, germs=germs_for_realizations(0.2, 0, range(MEMBERS)),
                           law_scales=np.exp(0.1 * np.random.default_rng(1).standard_normal(
                               (MEMBERS, 5))))
@@ -159,10 +163,20 @@ def test_with_the_law_known_the_surface_torques_offset_is_found_as_the_bias(conf
 @pytest.mark.parametrize('item, key', [
     ('assimilation.channels.top_torque.bias_prior_std=-1', 'bias_prior_std'),
     ('assimilation.channels.top_torque.bias=.nan', 'bias'),
+    ('assimilation.channels.top_torque.bias_prior_std=100', 'needs torque_on_bit'),
+    ('assimilation.channels.hook_load.bias_prior_std=100', 'top_torque or torque_on_bit only'),
 ])
 def test_a_bad_bias_setting_names_its_key(item, key):
+    """Also a bias the filter's measurements cannot tell from the law (the law estimated)."""
+    overrides = [item]
+    if 'hook_load' in item:
+        overrides.append('assimilation.filter.measurements=[top_torque,hook_load]')
     with pytest.raises(ConfigError, match=key):
-        load_assimilation(None, [item])
+        load_assimilation(None, overrides)
+    if 'needs' in key:                      # with the TOB, or the law not estimated: accepted
+        load_assimilation(None, [item, 'assimilation.filter.parameters=none'])
+        load_assimilation(None, [item, 'assimilation.filter.measurements='
+                                       '[top_torque,block_position,torque_on_bit]'])
 
 
 def test_the_estimated_bias_is_recorded_and_published_labelled_by_channel(config):
