@@ -203,3 +203,28 @@ def test_the_estimated_bias_is_recorded_and_published_labelled_by_channel(config
     predicted = unbiased._prediction_at(simulator.time_s)[:, 0]
     unbiased.offer(Sample('top_drive', simulator.time_s, {'top_torque': predicted.max()}))
     assert messages.bias_messages(unbiased._analyse_ready()) == []
+
+
+def test_the_bias_walk_is_centred_and_moves_the_stored_predictions_alike(config):
+    """
+    bias_walk_std: centred kicks of that size after the analysis, in the buffer as well.
+
+    The same deterministic analysis without and with a walk of 50 N m: the biases' mean is
+    the same, their changes have a sample std near 50 (6 members: within a factor 3), and each
+    member's stored prediction at the analysis moves by its kick.
+    """
+    runs = {}
+    for walk in (0.0, 50.0):
+        simulator, sequential = _filter(config, [
+            'assimilation.channels.top_torque.bias_prior_std=200.0',
+            f'assimilation.channels.top_torque.bias_walk_std={walk!r}'])
+        predicted = sequential._prediction_at(simulator.time_s)[:, 0]
+        sequential.offer(Sample('top_drive', simulator.time_s, {'top_torque': predicted.max()}))
+        assert sequential._analyse_ready() is not None
+        runs[walk] = (sequential.channel_bias[:, 0].copy(),
+                      sequential._prediction_at(simulator.time_s)[:, 0].copy())
+    (still, stored_still), (walked, stored_walked) = runs[0.0], runs[50.0]
+    kicks = walked - still
+    assert abs(kicks.mean()) < 1e-9
+    assert 50.0 / 3 < kicks.std(ddof=1) < 3 * 50.0
+    np.testing.assert_allclose(stored_walked - stored_still, kicks, rtol=1e-9, atol=1e-9)

@@ -24,10 +24,10 @@ Sensor biases: a channel's known ``bias`` (its calibration offset) is subtracted
 reading. A channel with ``bias_prior_std`` > 0 has a constant bias beyond it estimated with
 the state: each member carries its own (drawn centred with that standard deviation), its
 prediction of the channel is its model's value plus its bias, and the biases are analysed as
-augmented parameters (the parameters' transform, a walk of ``parameter_walk_std`` times
-their prior's standard deviation). Whether a bias is observable depends on the channels: a
-constant offset of the surface torque and the law's constant torque a5 look alike at any
-steady point (docs/ASSIMILATION.md).
+augmented parameters (the parameters' transform, a walk of ``bias_walk_std``, by default
+``parameter_walk_std`` times their prior's standard deviation). Whether a bias is observable
+depends on the channels: a constant offset of the surface torque and the law's constant
+torque a5 look alike at any steady point (settings.BIAS_COUNTERPART, docs/ASSIMILATION.md).
 """
 from __future__ import annotations
 
@@ -157,6 +157,10 @@ class SequentialFilter:
         self.bias_channels = settings.estimated_bias_channels()
         self._bias_prior_std = np.array([settings.channel(c).bias_prior_std
                                          for c in self.bias_channels])
+        self._bias_walk_std = np.array([
+            spec.parameter_walk_std * settings.channel(c).bias_prior_std
+            if settings.channel(c).bias_walk_std is None else settings.channel(c).bias_walk_std
+            for c in self.bias_channels])
         self._bias_column = {self.channels.index(c): j for j, c in enumerate(self.bias_channels)}
         draws = np.random.default_rng(np.random.SeedSequence(spec.seed, spawn_key=(3,))
                                       ).standard_normal((self.members, len(self.bias_channels)))
@@ -352,9 +356,8 @@ class SequentialFilter:
         if walk > 0 and count:                # the same for the parameters: centred kicks
             kicks = walk * self.rng.standard_normal((analysed.shape[0], count))
             analysed[:, size - count:size] += kicks - kicks.mean(axis=0)
-        if walk > 0 and self.bias_channels:   # the biases' walk, relative to their prior
-            kicks = walk * self._bias_prior_std * self.rng.standard_normal(
-                self.channel_bias.shape)
+        if np.any(self._bias_walk_std > 0):   # the biases' walk
+            kicks = self._bias_walk_std * self.rng.standard_normal(self.channel_bias.shape)
             analysed[:, size:] += kicks - kicks.mean(axis=0)
         if not np.all(np.isfinite(analysed)):
             self._refuse(f'analysis at {now:.3f} s skipped: it is not finite '

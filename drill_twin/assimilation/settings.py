@@ -48,13 +48,16 @@ class Channel:
     the filter subtracts it from them (a known calibration offset; 0: none known).
     bias_prior_std (SI, filter only): the standard deviation of the prior of a constant bias
     beyond ``bias`` that the filter estimates with the state, one per member (an augmented
-    parameter; 0: not estimated).
+    parameter; 0: not estimated); bias_walk_std (SI, filter only): the standard deviation of
+    a centred random change of each member's bias after each analysis (None: the filter's
+    ``parameter_walk_std`` times ``bias_prior_std``).
     """
 
     noise_std: float
     noise_relative: float = 0.0
     bias: float = 0.0
     bias_prior_std: float = 0.0
+    bias_walk_std: float | None = None
 
     def __post_init__(self):
         _check(self.noise_std >= 0, 'noise_std', 'must be >= 0', self.noise_std)
@@ -63,6 +66,9 @@ class Channel:
         _check(math.isfinite(self.bias), 'bias', 'must be finite', self.bias)
         _check(math.isfinite(self.bias_prior_std) and self.bias_prior_std >= 0,
                'bias_prior_std', 'must be >= 0', self.bias_prior_std)
+        _check(self.bias_walk_std is None or (math.isfinite(self.bias_walk_std)
+                                              and self.bias_walk_std >= 0),
+               'bias_walk_std', 'must be >= 0 (or null)', self.bias_walk_std)
 
     def std(self, value):
         """Return the noise standard deviation at ``value`` (same shape)."""
