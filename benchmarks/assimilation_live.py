@@ -1,7 +1,7 @@
 """The twin node following a rig over ROS topics: a rig log played into a running twin.
 
     python benchmarks/assimilation_live.py RIG.mcap [--members 16] [--duration S]
-        [--settle 0 10 20] [--out DIR] [--log-dir DIR]
+        [--settle 0 10 20] [--out DIR] [--log-dir DIR] [--assimilation FILE]
 
 RIG.mcap is a rig emulator's log (``drill-twin rig``; ``benchmarks/assimilation.py`` writes
 the issue's twin-on-twin scenario as DIR/rig.mcap). A player node publishes, over FastDDS on
@@ -13,7 +13,9 @@ the twin node (``use_sim_time``, 5 ms steps, the ensemble in its worker process)
 each /clock before the next, so the result does not depend on this machine's speed. The bit
 speed of the twin's ensemble topics (mean and 95 % bounds, 20 Hz) is scored against the
 log's truth: RMS error, the open loop's, coverage of the truth by the bounds, after each
-settling time; and the wall time (real-time factor of the loop). Writes DIR/live.json.
+settling time; and the wall time (real-time factor of the loop). ``--assimilation FILE``:
+the twin's assimilation_config (default the shipped one); the estimated sensor biases heard
+(if it estimates any) are printed and kept. Writes DIR/live.json.
 """
 from __future__ import annotations
 
@@ -23,6 +25,7 @@ blas_threads.limit_to_one()       # before numpy: two runs side by side must not
 
 import argparse
 import json
+import math
 import os
 import random
 import tempfile
@@ -38,7 +41,7 @@ EPOCH_NS = 100_000_000_000
 
 
 def play(log, members: int, duration_s: float, assimilation: bool, settings,
-         log_dir: str | None = None) -> dict:
+         log_dir: str | None = None, assimilation_config: str = '') -> dict:
     """Play the log into a fresh twin; return its ensemble's bit speed (stamps s, mean, lower, upper)."""
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
@@ -58,13 +61,19 @@ def play(log, members: int, duration_s: float, assimilation: bool, settings,
         'ensemble_members': members, 'ensemble_dispersion': settings.filter.prior_dispersion,
         'seed': settings.filter.seed, 'assimilation_enabled': assimilation,
         'ensemble_rate_hz': 20.0, 'log_enabled': log_dir is not None,
-        'log_dir': log_dir or 'runs', 'health_rate_hz': 1.0})
+        'log_dir': log_dir or 'runs', 'health_rate_hz': 1.0,
+        'assimilation_config': assimilation_config})
     node = create_twin_node(params, parameter_overrides=[Parameter('use_sim_time', value=True)])
     player = rclpy.create_node('rig_player')
     heard = {topic: [] for topic in (itf.ENSEMBLE_MEAN, itf.ENSEMBLE_LOWER, itf.ENSEMBLE_UPPER)}
     deep = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
     for topic in heard:
         player.create_subscription(JointState, topic, heard[topic].append, deep)
+    from std_msgs.msg import Float64MultiArray
+    biases = {topic: [] for topic in (itf.ASSIMILATION_BIAS_MEAN, itf.ASSIMILATION_BIAS_LOWER,
+                                      itf.ASSIMILATION_BIAS_UPPER)}
+    for topic in biases:
+        player.create_subscription(Float64MultiArray, topic, biases[topic].append, deep)
     clock = player.create_publisher(Clock, itf.CLOCK, rclpy_qos_profile(itf.CLOCK_QOS))
     commands = {itf.CMD_TOP_DRIVE_SPEED: log.speed_commands, itf.CMD_HOOK_LOAD: log.hook_commands}
     command_out = {topic: player.create_publisher(Float64, topic,
@@ -138,8 +147,16 @@ def play(log, members: int, duration_s: float, assimilation: bool, settings,
     _, lower = series(itf.ENSEMBLE_LOWER)
     _, upper = series(itf.ENSEMBLE_UPPER)
     n = min(len(mean), len(lower), len(upper))
+    bias = {}
+    if biases[itf.ASSIMILATION_BIAS_MEAN]:
+        last = {topic: heard_[-1] for topic, heard_ in biases.items() if heard_}
+        labels = last[itf.ASSIMILATION_BIAS_MEAN].layout.dim[0].label.split(',')
+        bias = {channel: {name: float(last[topic].data[j]) for name, topic in (
+            ('mean', itf.ASSIMILATION_BIAS_MEAN), ('lower', itf.ASSIMILATION_BIAS_LOWER),
+            ('upper', itf.ASSIMILATION_BIAS_UPPER)) if topic in last}
+            for j, channel in enumerate(labels)}
     return {'time_s': stamps[:n], 'mean': mean[:n], 'lower': lower[:n], 'upper': upper[:n],
-            'wall_s': wall, 'health': health}
+            'wall_s': wall, 'health': health, 'sensor_bias_final': bias}
 
 
 def _stamp(ns: int):
@@ -163,6 +180,8 @@ def main() -> None:
     parser.add_argument('--settle', type=float, nargs='+', default=[0.0, 10.0, 20.0])
     parser.add_argument('--out', default='assimilation-live')
     parser.add_argument('--log-dir', default=None, help='log the assimilating twin there')
+    parser.add_argument('--assimilation', default='',
+                        help="the twin's assimilation_config (default: the shipped one)")
     args = parser.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -177,7 +196,7 @@ def main() -> None:
     from drill_twin.assimilation.settings import load_assimilation
     from drill_twin.cli.rig import read_rig_log
 
-    settings = load_assimilation(None)
+    settings = load_assimilation(args.assimilation or None)
     log = read_rig_log(args.rig_log, settings)
     if log.truth is None:
         raise SystemExit(f'{args.rig_log}: no truth to score against')
@@ -186,7 +205,7 @@ def main() -> None:
     try:
         with threadpool_limits(limits=1, user_api='blas'):
             runs = {name: play(log, args.members, duration, on, settings,
-                               args.log_dir if on else None)
+                               args.log_dir if on else None, args.assimilation)
                     for name, on in (('assimilation', True), ('open_loop', False))}
     finally:
         rclpy.try_shutdown()
@@ -206,7 +225,10 @@ def main() -> None:
         result[name] = {'wall_s': run['wall_s'], 'real_time_factor': duration / run['wall_s'],
                         'measurements_used': h['measurements_used'],
                         'measurements_refused': h['measurements_refused'],
-                        'resets': h['resets']}
+                        'resets': h['resets'], 'sensor_bias_final': run['sensor_bias_final']}
+        for channel, bias in run['sensor_bias_final'].items():
+            print(f'{name}: estimated {channel} sensor bias {bias.get("mean", math.nan):.4g} '
+                  f'({bias.get("lower", math.nan):.4g} ... {bias.get("upper", math.nan):.4g})')
         print(f'{name}: {run["wall_s"]:.0f} s of wall time (real-time factor '
               f'{duration / run["wall_s"]:.2f}), samples used {h["measurements_used"]}, '
               f'refused {h["measurements_refused"]}, resets {h["resets"]}')
