@@ -39,7 +39,8 @@ def _filter(config, overrides, steps=10):
         f'assimilation.filter.members={MEMBERS}', 'assimilation.filter.method=etkf',
         'assimilation.filter.model_error_bit_speed_rad_per_s=0.0',
         'assimilation.filter.parameter_walk_std=0.0',
-        'assimilation.filter.measurements=[top_torque,torque_on_bit]', *overrides])
+        'assimilation.filter.measurements=[top_torque,torque_on_bit]',
+        'assimilation.channels.top_torque.bias_walk_std=0.0', *overrides])
     simulator = Simulator(config, MEMBERS, germs=germs_for_realizations(0.2, 0, range(MEMBERS)),
                           law_scales=np.exp(0.1 * np.random.default_rng(1).standard_normal(
                               (MEMBERS, 5))))
