@@ -111,8 +111,8 @@ class LiveView:
     # -- data --------------------------------------------------------------------------------
     def _clear(self) -> None:
         self._rows: dict[str, list] = {'bit': [], 'top': [], 'kpi': [], 'ensemble': [],
-                                       'germ': [], 'law': [], 'bias': [], 'station': [], 'profile': [],
-                                       'health': []}
+                                       'germ': [], 'law': [], 'bias': [], 'station': [],
+                                       'profile': [], 'health': []}
         self._events: list[tuple[float, str, str]] = []
         self._commands: dict[str, list] = {'speed': [], 'hook': []}
 
