@@ -1,11 +1,13 @@
 """Twin on twin (issue 15, section 3): the ensemble filter against a truth it does not know.
 
-    python benchmarks/assimilation.py [--duration 40] [--members 8] [--out DIR]
+    python benchmarks/assimilation.py [--duration 40] [--members 64] [--out DIR]
                                       [--settle 0 5 10 20] [--scale 1.3 ...]
 
 The truth (rig emulator, :func:`drill_twin.assimilation.rig.run_rig`): the paper's string
 with the bit-rock coefficients a1..a5 changed (default x 1.2, 0.9, 1.1, 1.3, 0.7: up to
-+-30 %), a germ at delta = 0.1 (seed 3), 2 % noise on the surface torque plus a bias of
++-30 %; this truth drills 0.08-0.12 mm/s, near the law's cutting threshold; ``--scale 1.1
+1.15 0.85 1.2 0.8``, the second truth of docs/ASSIMILATION.md, drills 0.7-1.3 mm/s), a germ
+at delta = 0.1 (seed 3), 2 % noise on the surface torque plus a bias of
 +100 N m (about 2 % of it), 2 mm on the block position; the default schedule (0.83 Hz,
 1.0 Hz at 30 s, hook load +10 kN at 60 s, as far as the log goes). The filter starts from
 the default configuration (config/ritto2009.yaml: the paper's coefficients) with N members
@@ -56,7 +58,7 @@ COEFFICIENTS = ('a1_m_per_s', 'a2_m_per_n_s', 'a3_m_per_rad', 'a4_n_rad', 'a5_n_
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--duration', type=float, default=40.0)
-    parser.add_argument('--members', type=int, default=8)
+    parser.add_argument('--members', type=int, default=64)
     parser.add_argument('--out', default='assimilation-benchmark')
     parser.add_argument('--settle', type=float, nargs='+', default=[0.0, 5.0, 10.0, 20.0])
     parser.add_argument('--scale', type=float, nargs=5, default=[1.2, 0.9, 1.1, 1.3, 0.7])

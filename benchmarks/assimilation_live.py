@@ -1,6 +1,6 @@
 """The twin node following a rig over ROS topics: a rig log played into a running twin.
 
-    python benchmarks/assimilation_live.py RIG.mcap [--members 16] [--duration S]
+    python benchmarks/assimilation_live.py RIG.mcap [--members 64] [--duration S]
         [--settle 0 10 20] [--out DIR] [--log-dir DIR] [--assimilation FILE]
 
 RIG.mcap is a rig emulator's log (``drill-twin rig``; ``benchmarks/assimilation.py`` writes
@@ -175,7 +175,7 @@ def score(run: dict, truth, settle_s: float) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('rig_log')
-    parser.add_argument('--members', type=int, default=16)
+    parser.add_argument('--members', type=int, default=64)
     parser.add_argument('--duration', type=float, default=None)
     parser.add_argument('--settle', type=float, nargs='+', default=[0.0, 10.0, 20.0])
     parser.add_argument('--out', default='assimilation-live')

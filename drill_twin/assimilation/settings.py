@@ -171,7 +171,7 @@ class Filter:
     """
 
     method: Method = 'etkf'
-    members: int = 16
+    members: int = 64
     inflation: float = 1.0
     relaxation: float = 0.5
     analysis_rate_hz: float = 1.0
