@@ -2,6 +2,7 @@
 
     python benchmarks/assimilation.py [--duration 40] [--members 64] [--out DIR]
                                       [--settle 0 5 10 20] [--scale 1.3 ...]
+                                      [--truth-set KEY=VALUE ...]
 
 The truth (rig emulator, :func:`drill_twin.assimilation.rig.run_rig`): the paper's string
 with the bit-rock coefficients a1..a5 changed (default x 1.2, 0.9, 1.1, 1.3, 0.7: up to
@@ -64,6 +65,9 @@ def main() -> None:
     parser.add_argument('--scale', type=float, nargs=5, default=[1.2, 0.9, 1.1, 1.3, 0.7])
     parser.add_argument('--truth-delta', type=float, default=0.1)
     parser.add_argument('--torque-bias', type=float, default=100.0)
+    parser.add_argument('--truth-set', dest='truth_overrides', action='append', default=[],
+                        metavar='KEY=VALUE', help="the truth's configuration, e.g. "
+                        "damping.mass_coefficient_per_s=0.02 (the filter does not know it)")
     parser.add_argument('--set', dest='overrides', action='append', default=[],
                         help='assimilation.KEY=VALUE for the filter')
     args = parser.parse_args()
@@ -73,7 +77,7 @@ def main() -> None:
     filter_config = load_config()
     truth_overrides = [f'bit_rock.{name}={getattr(filter_config.bit_rock, name) * s!r}'
                        for name, s in zip(COEFFICIENTS, args.scale)]
-    truth_config = load_config(None, truth_overrides)
+    truth_config = load_config(None, truth_overrides + args.truth_overrides)
     truth_germ = germs_for_realizations(args.truth_delta, 3, [0])[0]
     rig_settings = load_assimilation(None, [
         'assimilation.channels.top_torque.noise_std=0.0',
@@ -189,7 +193,8 @@ def main() -> None:
                                   a['hole_rate_predicted'][closed])]
     result = {'duration_s': log.duration_s, 'members': args.members,
               'truth_scale': args.scale, 'truth_delta': args.truth_delta,
-              'torque_bias_nm': args.torque_bias, 'filter': repr(filter_settings.filter),
+              'torque_bias_nm': args.torque_bias, 'truth_overrides': args.truth_overrides,
+              'filter': repr(filter_settings.filter),
               'rig_wall_s': rig_wall, 'filter_wall_s': filter_wall,
               'scores_by_settle_s': scores, 'percentile_coverage_by_settle_s': percentile,
               'law_at_operating_point': law, 'axial_state': axial,

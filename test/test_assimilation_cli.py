@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from cli_output import assert_one_line
+from test_recording_rerun import rerun_env, rrd_chunks  # noqa: F401 (a fixture)
 from drill_twin.assimilation.measurements import read
 from drill_twin.assimilation.settings import load_assimilation
 
@@ -117,6 +118,39 @@ def test_assimilate_estimates_a_sensor_bias_when_asked(rig_log, tmp_path):
     assert set(read) == {'mean', 'lower', 'upper'}
     assert read['mean'].layout.dim[0].label == 'top_torque'
     assert read['mean'].data[0] == pytest.approx(final['top_torque']['mean'], rel=1e-12)
+
+
+def test_the_estimate_opens_in_rerun_with_its_bounds_the_truth_and_the_open_loop(
+        rig_log, tmp_path, rerun_env):  # noqa: F811
+    """
+    The estimate opens in rerun: ``drill-twin view EST.mcap --rrd`` (the ensemble tab).
+
+    The .rrd (read back by rerun's own CLI) holds the estimated bit speed's mean and band, the
+    open loop's mean and bounds and the log's truth, in rpm, on the estimate's run time (the
+    truth's first sample at 0.05 s, its 20 Hz), with the ensemble tab first.
+    """
+    import subprocess as sp
+
+    from drill_twin.recording.rerun_view import rerun_executable
+    out, rrd = tmp_path / 'est.mcap', tmp_path / 'est.rrd'
+    drill_twin('assimilate', str(rig_log), *SMALL, *SENSORS, '--members', '2',
+               '--out', str(out), check=True)
+    result = drill_twin('view', str(out), '--rrd', str(rrd), check=True)
+    assert str(rrd) in result.stdout
+    columns = rrd_chunks(rrd, rerun_env)
+    for entity in ('/ensemble/speed/mean', '/ensemble/speed/band', '/ensemble/speed/truth',
+                   '/ensemble/speed/open_loop/mean', '/ensemble/speed/open_loop/upper',
+                   '/ensemble/germ/g11/mean'):
+        assert 'Scalars:scalars' in columns.get(entity, set()), entity
+    verbose = sp.run([rerun_executable(), 'rrd', 'print', '-vvv', str(rrd)], env=rerun_env,
+                     capture_output=True, text=True, check=True, timeout=60).stdout
+    assert 'truth (green), open loop (grey' in verbose
+    from drill_twin.recording.rerun_native import read_run
+    run = read_run([out])
+    truth = run.array('truth', 2)
+    np.testing.assert_allclose(truth[:3, 0], [0.05, 0.10, 0.15], atol=1e-9)
+    estimate = run.array('estimate/mean', 2)
+    assert estimate.shape[0] == truth.shape[0] and np.all(np.isfinite(estimate))
 
 
 @pytest.mark.parametrize('args, words', [

@@ -16,6 +16,9 @@ model time from 0 (ns):
 - /diagnostics: per analysis the normalised innovation squared and its count of
   measurements (diagnostic_msgs/DiagnosticArray, name 'drill_twin: assimilation');
 - the log's truth (/rig/truth/bit_state), when it has one.
+
+It opens in rerun with ``drill-twin view EST.mcap`` (or ``--rrd OUT``): the ensemble tab shows the
+estimated bit speed, its 95 % band, the truth and the open loop, and the estimated parameters.
 """
 from __future__ import annotations
 
@@ -102,7 +105,7 @@ def run(args: argparse.Namespace) -> int:
     except TwinStalled as error:
         raise blamed(config, args.overrides, f'the ensemble cannot be integrated: {error}'
                      ) from None
-    write_estimate(args.out, estimate, log, settings.filter.bounds)
+    write_estimate(args.out, estimate, log, settings.filter.bounds, args.log)
     text = f'assimilate: {log.duration_s:g} s of {args.log}, {settings.filter.members} members'
     if log.truth is not None:
         summary = summarise(estimate, log, args.settle, settings.filter.bounds)
@@ -118,8 +121,8 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def write_estimate(path, estimate, log, method: str = 'student_t') -> None:
-    """EST.mcap (module docstring)."""
+def write_estimate(path, estimate, log, method: str = 'student_t', log_path='') -> None:
+    """EST.mcap (module docstring); ``log_path``: the rig log's, for the metadata record."""
     from drill_twin.recording.mcap_log import McapLog
     from drill_twin.recording.message_types import import_message_class
 
@@ -139,13 +142,14 @@ def write_estimate(path, estimate, log, method: str = 'student_t') -> None:
     messages = []
     for k, time_s in enumerate(a['time_s']):
         t = int(round(time_s * 1e9))
-        for kind, values in (('', filtered[k]), ('/open_loop', open_loop[k])):
+        for prefix, values in ((itf.ASSIMILATION_BIT_STATE, filtered[k]),
+                               (itf.ASSIMILATION_OPEN_LOOP_BIT_STATE, open_loop[k])):
             for column, name in enumerate(('mean', 'lower', 'upper')):
                 message = joint_state()
                 stamp(message, t)
                 message.name = [itf.BIT_ROTATION]
                 message.velocity = [float(values[column])]
-                messages.append((t, f'{PREFIX}{kind}/bit_state/{name}', message))
+                messages.append((t, f'{prefix}/{name}', message))
     for k, time_s in enumerate(a['analysis_time_s']):
         t = int(round(time_s * 1e9))
         for estimated in ('germ', 'law'):           # what the filter estimates (not NaN)
@@ -181,6 +185,7 @@ def write_estimate(path, estimate, log, method: str = 'student_t') -> None:
             messages.append((t, TRUTH_BIT, message))
     messages.sort(key=lambda item: item[0])
     with McapLog(path) as out:
+        out.add_metadata(itf.ESTIMATE_METADATA, {'clock_epoch_ns': '0', 'log': str(log_path)})
         for _, topic, message in messages:
             kind = type(message).__module__.split('.')[0] + '/msg/' + type(message).__name__
             out.add_topic(topic, kind)

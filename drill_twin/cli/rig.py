@@ -27,11 +27,12 @@ from pathlib import Path
 
 import numpy as np
 
+from drill_twin import interface as itf
 from drill_twin.cli.common import (UsageError, add_config_arguments, blamed,
                                    positive_seconds)
 from drill_twin.cli.progress import ProgressBar
 
-TRUTH_BIT = '/rig/truth/bit_state'
+TRUTH_BIT = itf.RIG_TRUTH_BIT_STATE
 TRUTH_HOLE = '/rig/truth/hole_depth'
 METADATA = 'drill_twin_rig'
 
@@ -118,7 +119,6 @@ def _ns(seconds: float) -> int:
 
 def write_rig_log(path, log, settings, metadata: dict[str, str]) -> None:
     """Write a RigLog (see the module docstring for the layout)."""
-    from drill_twin import interface as itf
     from drill_twin.assimilation.measurements import joint_state_fields
     from drill_twin.recording.mcap_log import McapLog
     from drill_twin.recording.message_types import import_message_class
@@ -177,7 +177,6 @@ def read_rig_log(path, settings):
 
     Raises UsageError naming the problem (one line).
     """
-    from drill_twin import interface as itf
     from drill_twin.assimilation.measurements import values_from_joint_state
     from drill_twin.assimilation.rig_log import RigLog, SensorSamples, Truth
     from drill_twin.recording import cdr

@@ -21,8 +21,9 @@ def add_parser(subparsers) -> None:
                     "rerun's web viewer on localhost with --web.")
     parser.add_argument('log', nargs='+', metavar='LOG',
                         help='a .mcap log, a bag directory, or the split files of one run')
-    parser.add_argument('--tab', choices=TABS, default=TABS[0],
-                        help='the tab shown first (default %(default)s)')
+    parser.add_argument('--tab', choices=TABS, default=None,
+                        help=f'the tab shown first (default {TABS[0]}; for the estimate of '
+                             '`drill-twin assimilate`, EST.mcap: ensemble)')
     parser.add_argument('--rrd', metavar='OUT', help='write OUT (.rrd: data and layout) '
                         'instead of opening a viewer')
     parser.add_argument('--web', action='store_true',

@@ -300,6 +300,38 @@ def send_ensemble(recording, t_s, mean, lower, upper) -> None:
         _scalars(recording, f'ensemble/{key}/mean', t_s, means[key])
 
 
+def send_estimate(recording, t_s, mean, lower, upper, open_loop=None, truth=None) -> None:
+    """
+    Send an assimilation's bit speed estimate (EST.mcap of ``drill-twin assimilate``), rad/s.
+
+    Arrays (n,) at ``t_s``: the analysed ensemble's mean and 95 % bounds, drawn as the
+    ensemble's mean and band; ``open_loop``: (t_s, mean, lower, upper) of the same ensemble
+    without analysis (thin grey lines); ``truth``: (t_s, speed) of the rig log's true bit
+    speed (green). Their series styles are logged with them.
+    """
+    import rerun as rr
+
+    scale = RPM_PER_RAD_PER_S
+    low, high = scale * np.asarray(lower)[:, None], scale * np.asarray(upper)[:, None]
+    _scalars(recording, 'ensemble/speed/band', t_s,
+             low + np.linspace(0.0, 1.0, BAND_LINES) * (high - low))
+    _scalars(recording, 'ensemble/speed/mean', t_s, scale * np.asarray(mean))
+    if open_loop is not None:
+        recording.log('ensemble/speed/open_loop/mean', rr.SeriesLines(
+            names='open loop (mean)', colors=GREY, widths=1.2), static=True)
+        for bound in ('lower', 'upper'):
+            recording.log(f'ensemble/speed/open_loop/{bound}', rr.SeriesLines(
+                names='open loop (95 %)', colors=GREY, widths=0.6), static=True)
+        t_open, *values = open_loop
+        for bound, series in zip(('mean', 'lower', 'upper'), values):
+            _scalars(recording, f'ensemble/speed/open_loop/{bound}', t_open,
+                     scale * np.asarray(series))
+    if truth is not None:
+        recording.log('ensemble/speed/truth', rr.SeriesLines(
+            names='truth (rig log)', colors=GREEN, widths=1.5), static=True)
+        _scalars(recording, 'ensemble/speed/truth', truth[0], scale * np.asarray(truth[1]))
+
+
 def send_germ(recording, t_s, mean, lower, upper) -> None:
     """
     Send the estimated bit-rock germ of the analyses (assimilation).
@@ -594,11 +626,19 @@ def _lateral_tab(geometry: StringGeometry):
         row_shares=[3, 1], name=TAB_TITLES['lateral'])
 
 
-def _ensemble_tab(assimilation: bool = False, law: bool = False, bias_channels=()):
+def _ensemble_tab(assimilation: bool = False, law: bool = False, bias_channels=(),
+                  estimate: bool = False):
     import rerun.blueprint as rrb
 
     views = []
-    for key, (title, unit) in ENSEMBLE_QUANTITIES.items():
+    if estimate:                    # an offline estimate: its bit speed, the truth, open loop
+        views.append(_series(
+            'Bit speed (rpm): estimate (blue), its 95 % band (shaded), truth (green), '
+            'open loop (grey: mean, 95 %)',
+            ['ensemble/speed/band', 'ensemble/speed/open_loop/lower',
+             'ensemble/speed/open_loop/upper', 'ensemble/speed/open_loop/mean',
+             'ensemble/speed/truth', 'ensemble/speed/mean']))
+    for key, (title, unit) in ({} if estimate else ENSEMBLE_QUANTITIES).items():
         views.append(_series(
             f'{title} ({unit}): ensemble mean (blue), 95 % band (shaded), mean model (orange)',
             [f'ensemble/{key}/band', f'ensemble/{key}/model', f'ensemble/{key}/mean']))
@@ -640,7 +680,7 @@ def _diagnostics_tab():
 
 def twin_blueprint(geometry: StringGeometry, *, active_tab: int | str = 0,
                    follow: bool = True, assimilation: bool = False, law: bool = False,
-                   bias_channels=()):
+                   bias_channels=(), estimate: bool = False):
     """
     Build the rerun blueprint of the twin's views (tabs :data:`TABS`).
 
@@ -650,11 +690,13 @@ def twin_blueprint(geometry: StringGeometry, *, active_tab: int | str = 0,
     :param assimilation: the ensemble tab shows the estimated germ too.
     :param law: and the estimated factors of the law's coefficients (parameters 'law').
     :param bias_channels: and the estimated biases of these channels' sensors.
+    :param estimate: the log is an offline estimate (EST.mcap): the ensemble tab shows its bit
+        speed with the truth and the open loop instead of the twin's ensemble.
     """
     import rerun.blueprint as rrb
 
     tabs = rrb.Tabs(_bit_tab(), _driller_tab(), _lateral_tab(geometry),
-                    _ensemble_tab(assimilation, law, tuple(bias_channels)),
+                    _ensemble_tab(assimilation, law, tuple(bias_channels), estimate),
                     _diagnostics_tab(), active_tab=tab_index(active_tab))
     return rrb.Blueprint(tabs,
                          rrb.TimePanel(timeline=TIMELINE, state='collapsed',

@@ -32,6 +32,11 @@ GERM_TOPICS = (itf.ASSIMILATION_GERM_MEAN, itf.ASSIMILATION_GERM_LOWER,
 """The estimated germ (assimilation): mean, 2.5 % and 97.5 % of [G11, G12, G22]."""
 LAW_TOPICS = (itf.ASSIMILATION_LAW_MEAN, itf.ASSIMILATION_LAW_LOWER, itf.ASSIMILATION_LAW_UPPER)
 """The estimated factors of the law's a1 ... a5 (parameters 'law'): mean, 2.5 %, 97.5 %."""
+ESTIMATE_TOPICS = {f'{prefix}/{bound}': f'{kind}/{bound}'
+                   for prefix, kind in ((itf.ASSIMILATION_BIT_STATE, 'estimate'),
+                                        (itf.ASSIMILATION_OPEN_LOOP_BIT_STATE, 'open_loop'))
+                   for bound in ('mean', 'lower', 'upper')}
+"""An offline estimate's bit speed (EST.mcap): topic -> series ('estimate/mean', ...)."""
 BIAS_TOPICS = (itf.ASSIMILATION_BIAS_MEAN, itf.ASSIMILATION_BIAS_LOWER,
                itf.ASSIMILATION_BIAS_UPPER)
 """The estimated sensor biases (labelled by channel): mean, 2.5 %, 97.5 %."""
@@ -103,7 +108,8 @@ def read_run(files: Sequence[Path], stations_m: Sequence[float] | None = None) -
     from drill_twin.recording.reader import iter_raw, read_metadata
 
     run = RunColumns()
-    run.metadata = dict(read_metadata(files[0]).get('drill_twin', {}))
+    metadata = read_metadata(files[0])             # a twin log's, or an estimate's (EST.mcap)
+    run.metadata = dict(metadata.get('drill_twin') or metadata.get(itf.ESTIMATE_METADATA, {}))
     epoch = _epoch_ns(run.metadata)
     stations = {}
     next_profile = -np.inf
@@ -126,6 +132,12 @@ def read_run(files: Sequence[Path], stations_m: Sequence[float] | None = None) -
                                         effort[1]))
             elif topic in GERM_TOPICS or topic in LAW_TOPICS:
                 run.rows[topic].append((log_s, *cdr.float64_multi_array(data)))
+            elif topic in ESTIMATE_TOPICS:
+                stamp, _, velocity, _ = cdr.joint_state(data)
+                run.rows[ESTIMATE_TOPICS[topic]].append(((stamp - epoch) * 1e-9, velocity[0]))
+            elif topic == itf.RIG_TRUTH_BIT_STATE:      # joints bit_axial, bit_rotation
+                stamp, _, velocity, _ = cdr.joint_state(data)
+                run.rows['truth'].append(((stamp - epoch) * 1e-9, velocity[1]))
             elif topic in BIAS_TOPICS:
                 labels = cdr.float64_multi_array_labels(data)
                 channels = tuple(labels[0].split(',')) if labels and labels[0] else ()
@@ -246,6 +258,7 @@ def send_run(recording, run: RunColumns, geometry: layout.StringGeometry) -> Non
         values = run.array(topic, 2)
         layout._scalars(recording, entity, values[:, 0], scale * values[:, 1])
     _send_ensemble(recording, run)
+    _send_estimate(recording, run)
     _send_germ(recording, run)
     radial = []
     profile_t = run.array('contact', 1)[:, 0] if run.rows.get('contact') else np.zeros(0)
@@ -280,6 +293,28 @@ def _send_ensemble(recording, run: RunColumns) -> None:
     layout.send_ensemble(recording, mean[:n, 0], mean[:n, 1:], lower[:n, 1:], upper[:n, 1:])
 
 
+def _send_estimate(recording, run: RunColumns) -> None:
+    """Send an offline estimate's bit speed with its truth and open loop (EST.mcap), if any."""
+    series = {key: run.array(key, 2) for key in (*ESTIMATE_TOPICS.values(), 'truth')}
+    n = min(len(series[f'estimate/{b}']) for b in ('mean', 'lower', 'upper'))
+    if n == 0:
+        return
+    m = min(len(series[f'open_loop/{b}']) for b in ('mean', 'lower', 'upper'))
+    open_loop = ((series['open_loop/mean'][:m, 0],
+                  *(series[f'open_loop/{b}'][:m, 1] for b in ('mean', 'lower', 'upper')))
+                 if m else None)
+    truth = series['truth']
+    layout.send_estimate(recording, series['estimate/mean'][:n, 0],
+                         *(series[f'estimate/{b}'][:n, 1] for b in ('mean', 'lower', 'upper')),
+                         open_loop=open_loop,
+                         truth=(truth[:, 0], truth[:, 1]) if len(truth) else None)
+
+
+def is_estimate(run: RunColumns) -> bool:
+    """Tell whether the run is an offline estimate (EST.mcap of ``drill-twin assimilate``)."""
+    return bool(run.rows.get('estimate/mean'))
+
+
 def _send_germ(recording, run: RunColumns) -> None:
     mean, lower, upper = (run.array(topic, 4) for topic in GERM_TOPICS)
     n = min(mean.shape[0], lower.shape[0], upper.shape[0])
@@ -298,14 +333,15 @@ def _send_germ(recording, run: RunColumns) -> None:
 
 
 def write_rrd(source, rrd_path: str | os.PathLike, stations_m: Sequence[float] | None = None,
-              *, active_tab: int | str = 0, application_id: str = layout.APPLICATION_ID
-              ) -> Path:
+              *, active_tab: int | str | None = None,
+              application_id: str = layout.APPLICATION_ID) -> Path:
     """
     Convert a twin log into one self-contained ``.rrd`` (data and blueprint).
 
     :param source: a ``.mcap`` file, a bag directory, or a list of these (split files).
     :param stations_m: station depths (m); default: those of the log's topics.
-    :param active_tab: the tab shown first (index or name, see :data:`rerun_layout.TABS`).
+    :param active_tab: the tab shown first (index or name, see :data:`rerun_layout.TABS`;
+        None: the bit's, or the ensemble's for an offline estimate).
     :returns: the ``.rrd`` path.
     """
     import rerun as rr
@@ -313,7 +349,10 @@ def write_rrd(source, rrd_path: str | os.PathLike, stations_m: Sequence[float] |
     files = log_files(source)
     run = read_run(files)
     geometry = geometry_of(run, stations_m)
-    blueprint = layout.twin_blueprint(geometry, active_tab=active_tab,
+    estimate = is_estimate(run)
+    if active_tab is None:
+        active_tab = 'ensemble' if estimate else 0
+    blueprint = layout.twin_blueprint(geometry, active_tab=active_tab, estimate=estimate,
                                       assimilation=bool(run.rows.get(itf.ASSIMILATION_GERM_MEAN)),
                                       law=bool(run.rows.get(itf.ASSIMILATION_LAW_MEAN)),
                                       bias_channels=run.bias_channels)

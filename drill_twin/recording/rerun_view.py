@@ -37,13 +37,15 @@ def has_display(environ=None) -> bool:
 
 
 def save_rrd(source, rrd_path: str | os.PathLike, stations_m: Sequence[float] | None = None,
-             *, active_tab: int | str = 0, application_id: str = APPLICATION_ID) -> Path:
+             *, active_tab: int | str | None = None,
+             application_id: str = APPLICATION_ID) -> Path:
     """
     Convert a twin log into a self-contained ``.rrd`` (data and layout); returns its path.
 
     :param source: a ``.mcap`` file (also one cut short), a bag directory, or a list.
     :param stations_m: station depths (m); default: those of the log's topics.
-    :param active_tab: the tab shown first (index or name, see :data:`TABS`).
+    :param active_tab: the tab shown first (index or name, see :data:`TABS`; None: the bit's,
+        or the ensemble's for an offline estimate).
     """
     from drill_twin.recording.rerun_native import write_rrd
 
@@ -100,7 +102,8 @@ def web_url(port: int = DEFAULT_GRPC_PORT, web_port: int = DEFAULT_WEB_PORT) -> 
 
 
 def open_viewer(source, stations_m: Sequence[float] | None = None, *,
-                active_tab: int | str = 0, rrd_dir: str | os.PathLike | None = None,
+                active_tab: int | str | None = None,
+                rrd_dir: str | os.PathLike | None = None,
                 web: bool = False, port: int = DEFAULT_GRPC_PORT,
                 web_port: int = DEFAULT_WEB_PORT,
                 extra_args: Sequence[str] = ()) -> subprocess.Popen:
