@@ -61,6 +61,7 @@ class LiveView:
         self.blueprint = layout.twin_blueprint(self.geometry, active_tab=active_tab,
                                                follow=True, assimilation=assimilation,
                                                law=law, bias_channels=bias_channels)
+        self._bias_channels = tuple(bias_channels)
         self.recording = recording if recording is not None else rr.RecordingStream(
             layout.APPLICATION_ID)
         self.sample_period_s = 1.0 / sample_rate_hz
@@ -133,10 +134,10 @@ class LiveView:
             if all(np.isfinite(record.law_mean)):
                 self._rows['law'].append((record.time_s, *record.law_mean, *record.law_lower,
                                           *record.law_upper))
-            if record.bias_channels:
-                self._rows['bias'].append((record.bias_channels, record.time_s,
-                                           *record.bias_mean, *record.bias_lower,
-                                           *record.bias_upper))
+            if record.bias_channels:          # the same channels in every analysis of a run
+                self._bias_channels = record.bias_channels
+                self._rows['bias'].append((record.time_s, *record.bias_mean,
+                                           *record.bias_lower, *record.bias_upper))
         if t >= self._next_sample:
             self._next_sample = t + self.sample_period_s - 1e-9
             self._sample(snapshot, t)
@@ -215,10 +216,8 @@ class LiveView:
             law = np.asarray(rows['law'], dtype=float)
             layout.send_law(rec, law[:, 0], law[:, 1:6], law[:, 6:11], law[:, 11:16])
         if rows['bias']:
-            channels = rows['bias'][-1][0]
-            bias = np.asarray([row[1:] for row in rows['bias'] if row[0] == channels])
-            b = len(channels)
-            layout.send_bias(rec, bias[:, 0], channels, bias[:, 1:1 + b],
+            bias, b = np.asarray(rows['bias'], dtype=float), len(self._bias_channels)
+            layout.send_bias(rec, bias[:, 0], self._bias_channels, bias[:, 1:1 + b],
                              bias[:, 1 + b:1 + 2 * b], bias[:, 1 + 2 * b:1 + 3 * b])
         if rows['station']:
             station = np.asarray(rows['station'])

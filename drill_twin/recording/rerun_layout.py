@@ -293,11 +293,16 @@ def send_ensemble(recording, t_s, mean, lower, upper) -> None:
     is :data:`BAND_LINES` lines from the lower to the upper bound.
     """
     means, lows, highs = map(_ensemble_values, (mean, lower, upper))
-    fractions = np.linspace(0.0, 1.0, BAND_LINES)
     for key in ENSEMBLE_QUANTITIES:
-        low, high = lows[key][:, None], highs[key][:, None]
-        _scalars(recording, f'ensemble/{key}/band', t_s, low + fractions * (high - low))
+        _band(recording, f'ensemble/{key}/band', t_s, lows[key], highs[key])
         _scalars(recording, f'ensemble/{key}/mean', t_s, means[key])
+
+
+def _band(recording, entity: str, t_s, low, high) -> None:
+    """Send a band as :data:`BAND_LINES` lines from ``low`` to ``high`` (arrays (n,))."""
+    low, high = np.asarray(low)[:, None], np.asarray(high)[:, None]
+    _scalars(recording, entity, t_s,
+             low + np.linspace(0.0, 1.0, BAND_LINES) * (high - low))
 
 
 def send_estimate(recording, t_s, mean, lower, upper, open_loop=None, truth=None) -> None:
@@ -312,9 +317,8 @@ def send_estimate(recording, t_s, mean, lower, upper, open_loop=None, truth=None
     import rerun as rr
 
     scale = RPM_PER_RAD_PER_S
-    low, high = scale * np.asarray(lower)[:, None], scale * np.asarray(upper)[:, None]
-    _scalars(recording, 'ensemble/speed/band', t_s,
-             low + np.linspace(0.0, 1.0, BAND_LINES) * (high - low))
+    _band(recording, 'ensemble/speed/band', t_s, scale * np.asarray(lower),
+          scale * np.asarray(upper))
     _scalars(recording, 'ensemble/speed/mean', t_s, scale * np.asarray(mean))
     if open_loop is not None:
         recording.log('ensemble/speed/open_loop/mean', rr.SeriesLines(

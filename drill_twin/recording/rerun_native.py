@@ -139,12 +139,9 @@ def read_run(files: Sequence[Path], stations_m: Sequence[float] | None = None) -
                 stamp, _, velocity, _ = cdr.joint_state(data)
                 run.rows['truth'].append(((stamp - epoch) * 1e-9, velocity[1]))
             elif topic in BIAS_TOPICS:
-                labels = cdr.float64_multi_array_labels(data)
-                channels = tuple(labels[0].split(',')) if labels and labels[0] else ()
-                if channels and channels != run.bias_channels:   # one set of channels a run
-                    run.bias_channels = channels
-                    for bias_topic in BIAS_TOPICS:
-                        run.rows.pop(bias_topic, None)
+                if not run.bias_channels:      # the same channels in every message of a run
+                    labels = cdr.float64_multi_array_labels(data)
+                    run.bias_channels = tuple(labels[0].split(',')) if labels else ()
                 run.rows[topic].append((log_s, *cdr.float64_multi_array(data)))
             elif topic in (itf.ENSEMBLE_MEAN, itf.ENSEMBLE_LOWER, itf.ENSEMBLE_UPPER):
                 stamp, position, velocity, effort = cdr.joint_state(data)
