@@ -25,8 +25,12 @@ WOB 100 kN), both as the law of the mean germ and as the mean over the analysed 
 laws (the ensemble's estimate of a quantity nonlinear in the germ: near the law's cutting
 threshold the ROP of the mean germ is not the members' mean ROP), and the members' axial state
 over the last third against the truth's (WOB and bit speed standard deviations, the ROP of
-their bits' own steps, their laws' steady ROP at the last set-point). Writes DIR/rig.mcap,
-DIR/assimilation.json. Slow: the full model, 2N members.
+their bits' own steps, their laws' steady ROP at the last set-point); the law the filter held
+at the end of each set-point's dwell, there; the mean law's steady ROP at the last set-point
+analysis by analysis over the last third (how much the estimate moves). ``--rig-set
+assimilation.rig.schedule=[]`` keeps the truth at the paper's operating point. Writes
+DIR/rig.mcap, DIR/assimilation.json and DIR/estimate.npz (the estimate's arrays). Slow: the
+full model, 2N members.
 """
 from __future__ import annotations
 
@@ -70,6 +74,9 @@ def main() -> None:
                         "damping.mass_coefficient_per_s=0.02 (the filter does not know it)")
     parser.add_argument('--set', dest='overrides', action='append', default=[],
                         help='assimilation.KEY=VALUE for the filter')
+    parser.add_argument('--rig-set', dest='rig_overrides', action='append', default=[],
+                        metavar='KEY=VALUE', help="the rig's, e.g. assimilation.rig.schedule=[] "
+                        '(the truth stays at the paper\'s operating point)')
     args = parser.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -83,7 +90,7 @@ def main() -> None:
         'assimilation.channels.top_torque.noise_std=0.0',
         'assimilation.channels.top_torque.noise_relative=0.02',
         f'assimilation.channels.top_torque.bias={args.torque_bias!r}',
-        'assimilation.channels.block_position.noise_std=0.002'])
+        'assimilation.channels.block_position.noise_std=0.002', *args.rig_overrides])
     filter_settings = load_assimilation(None, [f'assimilation.filter.members={args.members}',
                                                *args.overrides])
     clock = time.perf_counter()
@@ -103,6 +110,7 @@ def main() -> None:
     percentile = {f'{s:g}': summarise(estimate, log, s, 'percentile')['bit_speed_coverage_95']
                   for s in args.settle if s < log.duration_s}
     a = estimate.arrays()
+    np.savez_compressed(out / 'estimate.npz', **a)     # for reading the run again
     germ = np.array([[a['germ_mean'][-1][0], a['germ_mean'][-1][1]],
                      [a['germ_mean'][-1][1], a['germ_mean'][-1][2]]])
     omega = 2 * math.pi * filter_config.operation.top_drive_speed_hz
@@ -167,13 +175,45 @@ def main() -> None:
                         'estimated_rop_m_per_s': e_rop, 'estimated_tob_nm': e_tob,
                         'rop_relative_error': e_rop / t_rop - 1,
                         'tob_relative_error': e_tob / t_tob - 1})
+    # How much the mean law's steady ROP at the last set-point moves from analysis to analysis
+    # over the last third of the log (the estimate a driller reads there, second by second).
+    _, hz, weight = points[-1]
+    moving = [steady_point(filter_law.scaled(a['law_mean'][k])
+                           if np.all(np.isfinite(a['law_mean'][k])) else filter_law,
+                           2 * math.pi * hz, weight,
+                           np.array([[a['germ_mean'][k][0], a['germ_mean'][k][1]],
+                                     [a['germ_mean'][k][1], a['germ_mean'][k][2]]]))[0]
+              for k in np.flatnonzero(a['analysis_time_s'] >= 2.0 * log.duration_s / 3.0)]
+    moving = np.array(moving) / visited[-1]['truth_rop_m_per_s'] - 1
+    law['last_set_point_rop_relative_error_over_last_third'] = {
+        'mean': float(np.nanmean(moving)), 'std': float(np.nanstd(moving)),
+        'p5': float(np.nanpercentile(moving, 5)), 'p95': float(np.nanpercentile(moving, 95)),
+        'within_10_percent': float(np.mean(np.abs(moving) <= 0.1))}
     law['at_visited_set_points'] = visited
+    # The law the twin held while the rig was at each set-point (its last analysis before the
+    # next change), at that set-point: what a driller reads there. The final law above is
+    # that of the last set-point; at the earlier ones it is an extrapolation (the parameters'
+    # walk forgets what the earlier points told).
+    ends = [p[0] for p in points[1:]] + [log.duration_s]
+    for v, end in zip(visited, ends):
+        k = int(np.searchsorted(a['analysis_time_s'], end - 1e-9)) - 1
+        if k < 0:
+            continue
+        g = a['germ_mean'][k]
+        held_germ = np.array([[g[0], g[1]], [g[1], g[2]]])
+        held_law = (filter_law.scaled(a['law_mean'][k]) if np.all(np.isfinite(a['law_mean'][k]))
+                    else filter_law)
+        h_rop, h_tob = steady_point(held_law, 2 * math.pi * v['top_drive_speed_hz'],
+                                    v['weight_on_bit_n'], held_germ)
+        v.update({'held_at_s': float(a['analysis_time_s'][k]), 'held_rop_m_per_s': h_rop,
+                  'held_tob_nm': h_tob,
+                  'held_rop_relative_error': h_rop / v['truth_rop_m_per_s'] - 1,
+                  'held_tob_relative_error': h_tob / v['truth_tob_nm'] - 1})
     # The analysed members' axial state over the last third, against the truth's: how much
     # they oscillate, what their bits drill by their own steps, and where their laws' steady
     # point is at the last set-point (an oscillating bit drills faster than its steady point).
     late = a['time_s'] >= 2.0 * log.duration_s / 3.0
     truth_late = log.truth.time_s >= 2.0 * log.duration_s / 3.0
-    _, hz, weight = points[-1]
     steady = np.array([member_point(filter_law.scaled(s), 2 * math.pi * hz, weight, g)[0]
                        for s, g in zip(scales, estimate.final_germs)])
     axial = {'window_s': drilled['window_s'],
@@ -192,6 +232,7 @@ def main() -> None:
                for t, o, p in zip(a['analysis_time_s'][closed], a['hole_rate_observed'][closed],
                                   a['hole_rate_predicted'][closed])]
     result = {'duration_s': log.duration_s, 'members': args.members,
+              'rig_overrides': args.rig_overrides,
               'truth_scale': args.scale, 'truth_delta': args.truth_delta,
               'torque_bias_nm': args.torque_bias, 'truth_overrides': args.truth_overrides,
               'filter': repr(filter_settings.filter),
@@ -240,6 +281,11 @@ def main() -> None:
           f'their laws\' steady ROP at the last set-point {steady.mean() * 1e3:.4f} mm/s, '
           f'{steady.min() * 1e3:.4f} ... {steady.max() * 1e3:.4f} '
           f'({axial["truth_steady_rop_at_last_set_point_m_per_s"] * 1e3:.4f})')
+    m = law['last_set_point_rop_relative_error_over_last_third']
+    print(f'the mean law\'s steady ROP at the last set-point, analysis by analysis over the last '
+          f'third: {100 * m["mean"]:+.1f} % mean, {100 * m["std"]:.1f} % std, '
+          f'{100 * m["p5"]:+.1f} ... {100 * m["p95"]:+.1f} % (5-95 %), within 10 % '
+          f'{100 * m["within_10_percent"]:.0f} % of the time')
     for w in windows:
         print(f'hole-rate window closed at {w["analysis_time_s"]:.1f} s: block slope '
               f'{w["observed_m_per_s"] * 1e3:.3f} mm/s, members\' own {w["members_mean_m_per_s"] * 1e3:.3f}')
@@ -251,6 +297,10 @@ def main() -> None:
             continue
         print(where + f'estimated {100 * v["rop_relative_error"]:+.1f} %; TOB truth '
               f'{v["truth_tob_nm"]:.0f} N m, estimated {100 * v["tob_relative_error"]:+.1f} %')
+        if 'held_at_s' in v:
+            print(f'  the law held there at {v["held_at_s"]:.0f} s: ROP '
+                  f'{100 * v["held_rop_relative_error"]:+.1f} %, TOB '
+                  f'{100 * v["held_tob_relative_error"]:+.1f} %')
 
 
 def _progress(clock):

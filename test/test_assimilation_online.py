@@ -291,9 +291,14 @@ def test_the_filter_estimates_the_laws_factors_and_publishes_them(config, walk):
 
 
 def _law_filter(config, overrides):
-    """Return a 6-member filter of the law's factors on the surface torque, 10 steps recorded."""
+    """
+    Return a 6-member filter of the law's factors on the surface torque, 10 steps recorded.
+
+    Its analyses write their whole increment at once (test_analysis_increment.py: in parts).
+    """
     settings = load_assimilation(None, [
         'assimilation.filter.members=6', 'assimilation.filter.parameters=law',
+        'assimilation.filter.increment_duration_s=0.0',
         'assimilation.filter.model_error_bit_speed_rad_per_s=0.0',
         'assimilation.filter.parameter_walk_std=0.0',
         'assimilation.filter.measurements=[top_torque]', *overrides])

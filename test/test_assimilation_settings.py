@@ -26,6 +26,11 @@ def test_the_shipped_file_loads():
     ('assimilation.filter.localisation=blocks', 'assimilation.filter.localisation'),
     ('assimilation.filter.hole_rate_prediction=law',
      'assimilation.filter.hole_rate_prediction'),
+    ('assimilation.filter.increment_duration_s=-0.05',
+     'assimilation.filter.increment_duration_s'),
+    ('assimilation.filter.increment_duration_s=1.0',        # the analysis interval (1 Hz)
+     'assimilation.filter.increment_duration_s'),
+    ('assimilation.filter.increment_duration_s=.nan', 'assimilation.filter.increment_duration_s'),
 ])
 def test_a_bad_value_is_one_line_naming_the_key(item, key):
     with pytest.raises(ConfigError) as error:

@@ -162,8 +162,9 @@ def run_filter(config: DrillStringConfig, settings: AssimilationConfig, log: Rig
             if analyse_on:
                 sequential.offer(_sample(log, sensor, index, spec.measurements))
         record = sequential.after_step()
-        if record is not None:
+        if sequential.parameters_written:
             guarded.guard.set_germs(sim.integrator.germ, sim.integrator.law_scales)
+        if record is not None:
             estimate.add(record)
         if step in truth_steps or (log.truth is None and step % analysis_every == 0):
             speed = sim.last.bit_speed_rad_per_s

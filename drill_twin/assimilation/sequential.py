@@ -20,6 +20,17 @@ sample analysed later sees predictions consistent with the analysed state. With
 analysis, and each channel's stored predictions that of its motion. A sample stamped
 before the buffer's start is refused (too old); one stamped beyond the batch's time waits.
 
+With ``increment_duration_s`` > 0 an analysis does not jump the members to their analysed
+state: the increment (state and law, model error and walks included) is added in equal parts
+over that many steps' worth of model time (an incremental analysis update, Bloom et al.
+1996), the first part at the analysis. The bit-rock law ties the WOB to the bit's speed and
+to its coefficients without inertia (a2 ~ 6e-8 m/(N s): 0.1 rad/s of bit speed is some
+240 N), so a jump of either moves every member's WOB at once and the string rings; near the
+law's cutting threshold that ringing is rectified into drilling the law does not do
+(docs/ASSIMILATION.md). The stored predictions take the whole analysis at once (the members
+reach it within the increment's duration). A new analysis first completes what is left of
+the previous increment.
+
 Sensor biases: a channel's known ``bias`` (its calibration offset) is subtracted from every
 reading. A channel with ``bias_prior_std`` > 0 has a constant bias beyond it estimated with
 the state: each member carries its own (drawn centred with that standard deviation), its
@@ -166,6 +177,13 @@ class SequentialFilter:
                                       ).standard_normal((self.members, len(self.bias_channels)))
         self.channel_bias = self._bias_prior_std * (draws - draws.mean(axis=0))
         """(N, b): each analysed member's bias of each of ``bias_channels`` (SI)."""
+        self.increment_steps = max(1, int(round(spec.increment_duration_s / dt)))
+        """Steps over which an analysis's increment is added (1: at once)."""
+        self._increment = None            # (N, size): the part added at each step, or None
+        self._increment_left = 0          # how many parts are still to be added
+        self.parameters_written = False
+        """Whether the last :meth:`after_step` changed the members' germs or laws (then the
+        state guard takes them: ``GuardedSimulator.guard.set_germs``)."""
         self._motion_columns = self.state.motion_columns()
         self._block_column = (self.channels.index('block_position')
                               if 'block_position' in self.channels else None)
@@ -207,6 +225,8 @@ class SequentialFilter:
             for target, source in ours:
                 self._predicted[:, target] = self._predicted[:, source]
                 self.channel_bias[target] = self.channel_bias[source]
+                if self._increment is not None:
+                    self._increment[target] = self._increment[source]
             if self.hole_rate is not None and ours:
                 self.hole_rate.copy(*zip(*ours))
             self.replaced += len(replaced)
@@ -252,12 +272,32 @@ class SequentialFilter:
 
     # -- stepping ------------------------------------------------------------------------
     def after_step(self) -> AnalysisRecord | None:
-        """Record the members' predictions; analyse when due; return the analysis, if any."""
+        """
+        Add this step's part of an analysis's increment, if any; record the members'
+        predictions; analyse when due; return the analysis, if any.
+        """
+        self.parameters_written = False
+        if self._increment_left > 0:
+            self._add_increment(1)
         self._record()
         self._steps += 1
         if self._steps % self.analysis_every:
             return None
-        return self._analyse_ready()
+        record = self._analyse_ready()
+        self.parameters_written |= record is not None and self.state.parameter_count > 0
+        return record
+
+    def _add_increment(self, parts: int) -> None:
+        """Add ``parts`` of the pending increment to the members' state."""
+        parts = min(parts, self._increment_left)
+        vectors = self.state.extract() + parts * self._increment
+        self._increment_left -= parts
+        if self._increment_left == 0:
+            self._increment = None
+        self.state.write(vectors)
+        if self.hole_rate is not None:
+            self.hole_rate.after_write()
+        self.parameters_written |= self.state.parameter_count > 0
 
     def _record(self) -> None:
         o = self.simulator.observe(detailed=self.members)
@@ -322,6 +362,8 @@ class SequentialFilter:
             return None
         spec = self.settings.filter
         Y = np.stack(Y, axis=1)
+        if self._increment_left > 0:          # the previous analysis's, not yet all added
+            self._add_increment(self._increment_left)
         forecast = np.concatenate([self.state.extract(), self.channel_bias], axis=1)
         if not (np.all(np.isfinite(Y)) and np.all(np.isfinite(forecast))):
             self._refuse(f'analysis at {now:.3f} s skipped: the members\' predictions or '
@@ -363,6 +405,10 @@ class SequentialFilter:
             self._refuse(f'analysis at {now:.3f} s skipped: it is not finite '
                          f'({used} sample(s) unused)')
             return None
+        if self.increment_steps > 1:         # the first of its parts now, the rest step by step
+            self._increment = (analysed[:, :size] - forecast[:, :size]) / self.increment_steps
+            self._increment_left = self.increment_steps - 1
+            analysed[:, :size] = forecast[:, :size] + self._increment
         self.state.write(analysed[:, :size])
         self.channel_bias = analysed[:, size:].copy()
         if self.hole_rate is not None:

@@ -162,7 +162,11 @@ class Filter:
     analysed sample by sample hands to the state); hole_rate_prediction: what a member
     predicts of a window's slope: own_drilling (the depth its law drilled in its steps) or
     steady_law (its law's steady ROP at its mean bit speed and WOB over the window);
-    localisation: none (every measurement
+    increment_duration_s: the analysis's increment (state and parameters) is added in equal
+    parts at every step over this much model time (an incremental analysis update: an
+    instantaneous change of the bit's speed or law moves the WOB at once through the law's
+    stiff dependence on them, and the members ring; docs/ASSIMILATION.md; 0: at once; less
+    than an analysis interval); localisation: none (every measurement
     analyses the whole state) or motion (the axial block's coordinates, rates and the hole's
     offset are analysed with the axial channels only, the torsional block's with the torsional
     ones, :data:`~drill_twin.assimilation.measurements.MOTION_OF`; the parameters and any
@@ -187,6 +191,7 @@ class Filter:
     parameter_relaxation: float | None = None
     hole_rate_window_s: float | None = None
     hole_rate_prediction: HoleRatePrediction = 'own_drilling'
+    increment_duration_s: float = 0.05
     localisation: Localisation = 'none'
     seed: int = 0
 
@@ -225,6 +230,11 @@ class Filter:
         _check(self.hole_rate_window_s is None or 'block_position' in self.measurements,
                'hole_rate_window_s', 'needs block_position among the measurements',
                self.measurements)
+        _check(math.isfinite(self.increment_duration_s)
+               and 0 <= self.increment_duration_s < 1.0 / self.analysis_rate_hz,
+               'increment_duration_s', 'must be >= 0 and shorter than an analysis interval '
+               f'(1 / analysis_rate_hz = {1.0 / self.analysis_rate_hz:g} s)',
+               self.increment_duration_s)
         _check(self.model_error_bit_speed_rad_per_s == 0 or 'torsional' in self.blocks,
                'model_error_bit_speed_rad_per_s', 'needs the torsional block analysed',
                self.blocks)

@@ -321,7 +321,10 @@ class NewmarkIntegrator:
             evaluation = self.evaluate(state)
             residual_free = (evaluation.modal + load - state.q_rate @ self.damping_t
                              - self._stiffness_times(state.q))
-            state.q_acceleration = la.solve(self.mass, residual_free.T).T
+            previous, state.q_acceleration = (state.q_acceleration,
+                                              la.solve(self.mass, residual_free.T).T)
+            if np.array_equal(state.q_acceleration, previous):
+                break                     # a fixed point: every further pass gives the same
         return state
 
     def evaluate(self, state: BatchState, bearing: bool = True) -> ForceEvaluation:

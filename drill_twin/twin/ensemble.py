@@ -237,9 +237,11 @@ class LocalEnsemble:
             if result is not None:
                 self.step_index += 1
                 iterations += result.iterations
-                if self.filter is not None and self.filter.after_step() is not None:
-                    integrator = self.simulator.integrator
-                    self.guarded.guard.set_germs(integrator.germ, integrator.law_scales)
+                if self.filter is not None:
+                    self.filter.after_step()
+                    if self.filter.parameters_written:
+                        integrator = self.simulator.integrator
+                        self.guarded.guard.set_germs(integrator.germ, integrator.law_scales)
         analyses, events = (), ()
         if self.filter is not None:
             analyses = tuple(self.filter.take_history())
