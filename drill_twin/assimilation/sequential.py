@@ -273,8 +273,9 @@ class SequentialFilter:
     # -- stepping ------------------------------------------------------------------------
     def after_step(self) -> AnalysisRecord | None:
         """
-        Add this step's part of an analysis's increment, if any; record the members'
-        predictions; analyse when due; return the analysis, if any.
+        Record the members' predictions; analyse when due; return the analysis, if any.
+
+        First this step's part of the last analysis's increment is added, if one is left.
         """
         self.parameters_written = False
         if self._increment_left > 0:
