@@ -190,6 +190,24 @@ def main() -> None:
         'p5': float(np.nanpercentile(moving, 5)), 'p95': float(np.nanpercentile(moving, 95)),
         'within_10_percent': float(np.mean(np.abs(moving) <= 0.1))}
     law['at_visited_set_points'] = visited
+    # How long the law takes: the mean law at chosen times, at the set-point the rig is at
+    # then, against the truth's there.
+    by_time = []
+    for when in (10, 20, 30, 45, 60, 90, 120, 150, 200, 250, 300, 450, 600):
+        k = int(np.searchsorted(a['analysis_time_s'], when - 1e-9))
+        if when > log.duration_s or k >= a['analysis_time_s'].size:
+            break
+        v = [p for p, (since, _, _) in zip(visited, points)
+             if since <= a['analysis_time_s'][k]][-1]
+        g = a['germ_mean'][k]
+        rop, tob = steady_point(filter_law.scaled(a['law_mean'][k])
+                                if np.all(np.isfinite(a['law_mean'][k])) else filter_law,
+                                2 * math.pi * v['top_drive_speed_hz'], v['weight_on_bit_n'],
+                                np.array([[g[0], g[1]], [g[1], g[2]]]))
+        by_time.append({'time_s': float(a['analysis_time_s'][k]),
+                        'rop_relative_error': rop / v['truth_rop_m_per_s'] - 1,
+                        'tob_relative_error': tob / v['truth_tob_nm'] - 1})
+    law['at_current_set_point_by_time'] = by_time
     # The law the twin held while the rig was at each set-point (its last analysis before the
     # next change), at that set-point: what a driller reads there. The final law above is
     # that of the last set-point; at the earlier ones it is an extrapolation (the parameters'
@@ -281,6 +299,9 @@ def main() -> None:
           f'their laws\' steady ROP at the last set-point {steady.mean() * 1e3:.4f} mm/s, '
           f'{steady.min() * 1e3:.4f} ... {steady.max() * 1e3:.4f} '
           f'({axial["truth_steady_rop_at_last_set_point_m_per_s"] * 1e3:.4f})')
+    print('the mean law at the set-point of the moment: ' + ', '.join(
+        f'{b["time_s"]:.0f} s ROP {100 * b["rop_relative_error"]:+.1f} % TOB '
+        f'{100 * b["tob_relative_error"]:+.1f} %' for b in law['at_current_set_point_by_time']))
     m = law['last_set_point_rop_relative_error_over_last_third']
     print(f'the mean law\'s steady ROP at the last set-point, analysis by analysis over the last '
           f'third: {100 * m["mean"]:+.1f} % mean, {100 * m["std"]:.1f} % std, '
