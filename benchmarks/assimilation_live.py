@@ -94,11 +94,16 @@ def play(log, members: int, duration_s: float, assimilation: bool, settings,
             message.header.stamp.sec, message.header.stamp.nanosec = divmod(
                 EPOCH_NS + int(round(stamp * 1e9)), 1_000_000_000)
             queue.append((float(arrival), 1, name, message))
+    for channel, samples in log.scalars.items():     # channels on Float64 topics of their own
+        sensor_out[channel] = player.create_publisher(
+            Float64, settings.channel(channel).topic, rclpy_qos_profile(itf.STATE_QOS))
+        for arrival, value in zip(samples.arrival_s, samples.values[channel]):
+            queue.append((float(arrival), 1, channel, Float64(data=float(value))))
     queue.sort(key=lambda item: (item[0], item[1]))
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     executor.add_node(player)
-    used = node.measurement_topics              # (none in open loop)
+    used = [*node.measurement_topics, *node.scalar_measurement_topics]   # (none in open loop)
     ends = ([lambda t=t: node.count_subscribers(t) > 0 for t in heard]
             + [lambda p=p: p.get_subscription_count() > 0
                for p in [clock, *command_out.values()]]

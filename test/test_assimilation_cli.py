@@ -192,3 +192,51 @@ def test_a_reading_has_the_configured_bias_and_noise():
     expected = np.hypot(30.0, 0.02 * 5000.0)
     assert abs(errors.mean() - 100.0) < 5 * expected / np.sqrt(value.size)
     assert abs(errors.std() / expected - 1) < 0.03
+
+
+def test_a_channel_on_a_float64_topic_reads_and_assimilates_as_in_joint_state(rig_log, tmp_path):
+    """
+    ``channels.block_position.topic``: the log carries it as std_msgs/Float64 on its own.
+
+    The same log rewritten so: the block position is on /rig/block_position (Float64, read by
+    the independent ``mcap_ros2`` decoder) and no longer in the hook's JointState; read back,
+    its samples are the JointState's (stamps: received less the hook's delay, 0 here; the
+    same values), and the filter's estimate on it is the JointState log's, bit for bit.
+    """
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    from drill_twin.assimilation.offline import run_filter
+    from drill_twin.cli.rig import read_rig_log, write_rig_log
+    from drill_twin.config import load_config
+
+    overrides = SENSORS[1::2] + ['assimilation.filter.members=3',
+                                 'assimilation.filter.parameters=germ']
+    joint = load_assimilation(None, overrides)
+    scalar = load_assimilation(None, overrides + [
+        'assimilation.channels.block_position.topic=/rig/block_position'])
+    log = read_rig_log(rig_log, joint)
+    path = tmp_path / 'float64.mcap'
+    write_rig_log(path, log, scalar, {'duration_s': repr(log.duration_s)})
+    with open(path, 'rb') as stream:
+        decoded = {}
+        for schema, channel, message, ros in make_reader(
+                stream, decoder_factories=[DecoderFactory()]).iter_decoded_messages():
+            decoded.setdefault(channel.topic, (schema.name, []))[1].append(ros)
+    assert decoded['/rig/block_position'][0] == 'std_msgs/msg/Float64'
+    hook = log.sensors['hook']
+    np.testing.assert_array_equal([m.data for m in decoded['/rig/block_position'][1]],
+                                  hook.values['block_position'])
+    assert all(np.isnan(m.position[0]) for m in decoded['/rig/hook'][1])
+    again = read_rig_log(path, scalar)
+    assert 'block_position' not in again.sensors['hook'].values
+    np.testing.assert_allclose(again.scalars['block_position'].stamp_s, hook.stamp_s,
+                               atol=1e-9)
+    np.testing.assert_array_equal(again.scalars['block_position'].values['block_position'],
+                                  hook.values['block_position'])
+    config = load_config(None, SMALL[1::2])
+    estimates = [run_filter(config, settings, read).arrays()
+                 for settings, read in ((joint, log), (scalar, again))]
+    assert estimates[0]['analysis_time_s'].size >= 2
+    for name in ('filtered', 'germ_mean', 'nis', 'measurements'):
+        np.testing.assert_array_equal(estimates[0][name], estimates[1][name])

@@ -187,3 +187,78 @@ def test_the_twin_publishes_the_estimated_sensor_bias(twin_factory, tmp_path):  
     lower = twin.received[itf.ASSIMILATION_BIAS_LOWER][-1].data[0]
     upper = twin.received[itf.ASSIMILATION_BIAS_UPPER][-1].data[0]
     assert lower <= means[-1].data[0] <= upper
+
+
+def test_a_channel_on_a_float64_topic_is_assimilated(twin_factory, tmp_path):  # noqa: F811
+    """
+    The block position as std_msgs/Float64 on /rig/block_position (``channels.<c>.topic``).
+
+    The twin subscribes to it instead of the hook's JointState (the filter uses no other hook
+    channel), stamps each value when received (the hook's delay is 0) and analyses it: the
+    filter uses about two samples per surface torque sent (one of each), and a NaN value is
+    refused naming the topic. The values are logged on their topic.
+    """
+    from diagnostic_msgs.msg import DiagnosticStatus
+    from std_msgs.msg import Float64
+
+    from drill_twin.recording.qos import rclpy_qos_profile
+    settings = tmp_path / 'assimilation.yaml'
+    settings.write_text('assimilation:\n'
+                        '  channels:\n    block_position: {topic: /rig/block_position}\n')
+    twin = twin_factory(ensemble_members=6, ensemble_dispersion=0.2, ensemble_process=False,
+                        assimilation_enabled=True, assimilation_config=str(settings),
+                        duration_s=0.0, log_dir=tmp_path / 'logs')
+    assert set(twin.node.measurement_topics) == {'/rig/top_drive'}
+    assert twin.node.scalar_measurement_topics == {'/rig/block_position': 'block_position'}
+    from sensor_msgs.msg import JointState
+    rig = {'/rig/top_drive': twin.probe.create_publisher(JointState, '/rig/top_drive',
+                                                         rclpy_qos_profile(itf.STATE_QOS))}
+    block = twin.probe.create_publisher(Float64, '/rig/block_position',
+                                        rclpy_qos_profile(itf.STATE_QOS))
+    twin.spin_until(lambda: block.get_subscription_count() > 0
+                    and rig['/rig/top_drive'].get_subscription_count() > 0,
+                    'the twin subscribing to the rig')
+    sent = 0
+
+    def feed():
+        nonlocal sent
+        tops = twin.received[itf.TOP_STATE]
+        if not tops or stamp_ns(tops[-1]) < (sent + 1) * 100_000_000:
+            return False
+        top = tops[-1]
+        sent = stamp_ns(top) // 100_000_000
+        rig['/rig/top_drive'].publish(_reading(stamp_ns(top), 'top_drive',
+                                               velocity=[top.velocity[0]],
+                                               effort=[top.effort[0]]))
+        block.publish(Float64(data=float(top.position[1])))
+        return False
+
+    sequential = twin.node.engine.ensemble_runner.filter
+    offered, offer = [], sequential.offer
+
+    def counted(sample):
+        offered.append(sample)
+        return offer(sample)
+    sequential.offer = counted
+    twin.spin_until(lambda: feed() or sequential.analyses >= 2, 'two analyses')
+    hook = [s for s in offered if s.sensor == 'hook']
+    tops = [s for s in offered if s.sensor == 'top_drive']
+    assert len(hook) >= 5 and abs(len(hook) - len(tops)) <= 2
+    assert all(set(s.values) == {'block_position'} for s in hook)
+    for sample in hook:          # stamped when received: a few ticks after the state it is of
+        assert min(abs(sample.stamp_s - t.stamp_s) for t in tops) <= 0.05
+    assert sequential.samples_used > len(tops)      # more than the torques alone could be
+    assert sequential.samples_refused == 0
+
+    block.publish(Float64(data=math.nan))
+    twin.spin_until(lambda: feed() or twin.statuses('drill_twin: measurement rejected'),
+                    'the NaN refused')
+    refused = twin.statuses('drill_twin: measurement rejected')
+    assert refused[0].level == DiagnosticStatus.WARN
+    assert '/rig/block_position: block_position = nan is not finite' in _values(
+        refused[0])['reason']
+    twin.node.close()
+    from drill_twin.recording.reader import iter_raw
+    logged = [channel.topic for path in sorted((tmp_path / 'logs').glob('*/*.mcap'))
+              for _, channel, _ in iter_raw(path)]
+    assert logged.count('/rig/block_position') >= 5

@@ -23,7 +23,7 @@ from drill_twin.assimilation.bounds import interval
 from drill_twin.assimilation.measurements import SENSOR_CHANNELS
 from drill_twin.assimilation.rig_log import RigLog, command_at
 from drill_twin.assimilation.sequential import Sample, SequentialFilter
-from drill_twin.assimilation.settings import AssimilationConfig
+from drill_twin.assimilation.settings import SENSOR_OF, AssimilationConfig
 from drill_twin.assimilation.state import law_scales_for_members
 from drill_twin.config.schema import DrillStringConfig
 from drill_twin.dynamics.simulator import Simulator
@@ -142,9 +142,11 @@ def run_filter(config: DrillStringConfig, settings: AssimilationConfig, log: Rig
     steps = int(round(log.duration_s / dt))
     analysis_every = sequential.analysis_every
     arrivals = sorted(
-        (float(arrival), sensor, k) for sensor, samples in log.sensors.items()
-        for k, arrival in enumerate(samples.arrival_s)
-        if any(c in spec.measurements for c in SENSOR_CHANNELS[sensor]))
+        [(float(arrival), sensor, k) for sensor, samples in log.sensors.items()
+         for k, arrival in enumerate(samples.arrival_s)
+         if any(c in spec.measurements for c in SENSOR_CHANNELS[sensor])]
+        + [(float(arrival), channel, k) for channel, samples in log.scalars.items()
+           for k, arrival in enumerate(samples.arrival_s) if channel in spec.measurements])
     truth_steps = set()
     if log.truth is not None:
         truth_steps = set(np.round(log.truth.time_s / dt).astype(int).tolist())
@@ -189,7 +191,15 @@ def run_filter(config: DrillStringConfig, settings: AssimilationConfig, log: Rig
 
 
 def _sample(log: RigLog, sensor: str, index: int, channels) -> Sample:
-    """Sample ``index`` of ``sensor`` in the log, with the channels among ``channels``."""
+    """
+    Sample ``index`` of ``sensor`` in the log, with the channels among ``channels``.
+
+    ``sensor``: a sensor's name, or a channel's that came on a topic of its own.
+    """
+    if sensor in log.scalars:
+        samples = log.scalars[sensor]
+        return Sample(SENSOR_OF[sensor], float(samples.stamp_s[index]),
+                      {sensor: float(samples.values[sensor][index])})
     samples = log.sensors[sensor]
     return Sample(sensor, float(samples.stamp_s[index]),
                   {c: float(samples.values[c][index]) for c in SENSOR_CHANNELS[sensor]

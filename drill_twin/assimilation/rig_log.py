@@ -48,9 +48,12 @@ class RigLog:
     """
     A rig log: its length, sensor samples, commands, truth and metadata.
 
-    duration_s: the log's length (s); sensors: {name: SensorSamples}; speed_commands and
-    hook_commands: (c, 2) rows (time s, value: rad/s or N), in time order, the first at 0;
-    truth: or None; metadata: strings about the run (the truth's configuration...).
+    duration_s: the log's length (s); sensors: {name: SensorSamples} of the sensors'
+    JointStates; scalars: {channel: SensorSamples} of the channels that came as
+    std_msgs/Float64 on topics of their own (``channels.<c>.topic``; values {channel: (k,)});
+    speed_commands and hook_commands: (c, 2) rows (time s, value: rad/s or N), in time order,
+    the first at 0; truth: or None; metadata: strings about the run (the truth's
+    configuration...).
     """
 
     duration_s: float
@@ -59,6 +62,7 @@ class RigLog:
     hook_commands: np.ndarray
     truth: Truth | None = None
     metadata: dict[str, str] = field(default_factory=dict)
+    scalars: dict[str, SensorSamples] = field(default_factory=dict)
 
 
 def command_at(commands: np.ndarray, time_s: float) -> float:

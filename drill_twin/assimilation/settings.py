@@ -50,7 +50,10 @@ class Channel:
     beyond ``bias`` that the filter estimates with the state, one per member (an augmented
     parameter; 0: not estimated); bias_walk_std (SI, filter only): the standard deviation of
     a centred random change of each member's bias after each analysis (None: the filter's
-    ``parameter_walk_std`` times ``bias_prior_std``).
+    ``parameter_walk_std`` times ``bias_prior_std``). topic: None (the channel comes in its
+    sensor's sensor_msgs/JointState), or a topic of its own carrying it as std_msgs/Float64
+    (unstamped: taken as sampled when received less its sensor's ``delay_s``; the rig
+    emulator then writes it there and not in the JointState).
     """
 
     noise_std: float
@@ -58,6 +61,7 @@ class Channel:
     bias: float = 0.0
     bias_prior_std: float = 0.0
     bias_walk_std: float | None = None
+    topic: str | None = None
 
     def __post_init__(self):
         _check(self.noise_std >= 0, 'noise_std', 'must be >= 0', self.noise_std)
@@ -69,6 +73,8 @@ class Channel:
         _check(self.bias_walk_std is None or (math.isfinite(self.bias_walk_std)
                                               and self.bias_walk_std >= 0),
                'bias_walk_std', 'must be >= 0 (or null)', self.bias_walk_std)
+        _check(self.topic is None or (isinstance(self.topic, str) and self.topic.startswith('/')),
+               'topic', 'must be an absolute topic name (or null)', self.topic)
 
     def std(self, value):
         """Return the noise standard deviation at ``value`` (same shape)."""
@@ -301,6 +307,12 @@ class AssimilationConfig:
     source: str = '<defaults>'
 
     def __post_init__(self):
+        sensor_topics = [getattr(self.sensors, name).topic
+                         for name in ('top_drive', 'hook', 'downhole')]
+        for name, topic in self.scalar_topics().items():
+            _check(topic not in sensor_topics and list(self.scalar_topics().values()).count(
+                topic) == 1, f'channels.{name}.topic', "must be a topic of the channel's own",
+                topic)
         for channel in self.estimated_bias_channels():
             other = BIAS_COUNTERPART.get(channel)
             _check(other is not None, f'channels.{channel}.bias_prior_std',
@@ -317,6 +329,11 @@ class AssimilationConfig:
 
     def sensor_of(self, name: str) -> Sensor:
         return getattr(self.sensors, SENSOR_OF[name])
+
+    def scalar_topics(self) -> dict[str, str]:
+        """Return {channel: topic} of the channels carried as std_msgs/Float64 on their own."""
+        return {name: self.channel(name).topic for name in SENSOR_OF
+                if self.channel(name).topic is not None}
 
     def estimated_bias_channels(self) -> tuple[str, ...]:
         """Return the filter's channels whose bias it estimates (``bias_prior_std`` > 0)."""

@@ -10,7 +10,9 @@ RIG.mcap holds (model time from 0, in ns):
   'top_drive' (velocity = surface speed rad/s, effort = torque N m); '/rig/hook' joint 'hook'
   (position = block position m down, effort = hook load N); '/rig/downhole' joints
   'bit_rotation' (velocity = bit speed, effort = TOB) and 'bit_axial' (effort = WOB; its
-  velocity is NaN: not measured);
+  velocity is NaN: not measured); a channel with a topic of its own
+  (``assimilation.channels.<c>.topic``) is written there instead, as std_msgs/Float64 at
+  its arrival (unstamped), and its JointState field is NaN;
 - the commands it was driven with on the twin's command topics
   (/drill_twin/cmd/top_drive_speed, /drill_twin/cmd/hook_load, std_msgs/Float64);
 - the true downhole state for scoring on topics of its own: /rig/truth/bit_state
@@ -103,7 +105,8 @@ def run(args: argparse.Namespace) -> int:
                 'germ': json.dumps(None if germ is None else germ.tolist()),
                 'config': json.dumps(config_to_dict(config)),
                 'sensors': json.dumps({name: {'topic': getattr(settings.sensors, name).topic}
-                                       for name in log.sensors})}
+                                       for name in log.sensors}),
+                'channel_topics': json.dumps(settings.scalar_topics())}
     write_rig_log(args.out, log, settings, metadata)
     truth = log.truth
     print(f'rig: {log.duration_s:g} s written to {args.out}: '
@@ -137,12 +140,21 @@ def write_rig_log(path, log, settings, metadata: dict[str, str]) -> None:
         return message
 
     messages = []                                     # (log time ns, topic, message)
+    scalar_topics = settings.scalar_topics()         # these channels: Float64 of their own
+    joint_states = set()
     for name, samples in log.sensors.items():
         topic = getattr(settings.sensors, name).topic
         v = samples.values
+        carried = [c for c in v if c not in scalar_topics]
         for k, (stamp, arrival) in enumerate(zip(samples.stamp_s, samples.arrival_s)):
-            fields = joint_state_fields(name, {c: v[c][k] for c in v})
-            messages.append((_ns(arrival), topic, state(_ns(stamp), *fields)))
+            for channel in v:
+                if channel in scalar_topics:
+                    messages.append((_ns(arrival), scalar_topics[channel],
+                                     float64(data=float(v[channel][k]))))
+            if carried:
+                fields = joint_state_fields(name, {c: v[c][k] for c in carried})
+                messages.append((_ns(arrival), topic, state(_ns(stamp), *fields)))
+                joint_states.add(name)
     for topic, commands in ((itf.CMD_TOP_DRIVE_SPEED, log.speed_commands),
                             (itf.CMD_HOOK_LOAD, log.hook_commands)):
         for time_s, value in commands:
@@ -159,8 +171,11 @@ def write_rig_log(path, log, settings, metadata: dict[str, str]) -> None:
             messages.append((t, TRUTH_HOLE, float64(data=float(truth.hole_depth_m[k]))))
     messages.sort(key=lambda item: item[0])
     with McapLog(path) as out:
-        for name in log.sensors:
+        for name in sorted(joint_states):
             out.add_topic(getattr(settings.sensors, name).topic, 'sensor_msgs/msg/JointState')
+        for channel in sorted(c for s in log.sensors.values() for c in s.values
+                              if c in scalar_topics):
+            out.add_topic(scalar_topics[channel], 'std_msgs/msg/Float64')
         out.add_topic(itf.CMD_TOP_DRIVE_SPEED, 'std_msgs/msg/Float64', itf.COMMAND_QOS)
         out.add_topic(itf.CMD_HOOK_LOAD, 'std_msgs/msg/Float64', itf.COMMAND_QOS)
         if truth is not None:
@@ -184,7 +199,9 @@ def read_rig_log(path, settings):
 
     sensor_of_topic = {getattr(settings.sensors, name).topic: name
                        for name in ('top_drive', 'hook', 'downhole')}
+    channel_of_topic = {topic: channel for channel, topic in settings.scalar_topics().items()}
     rows = {name: [] for name in sensor_of_topic.values()}
+    scalar_rows = {channel: [] for channel in channel_of_topic.values()}
     speed, hook, truth_rows, hole = [], [], [], {}
     last_ns = 0
     try:
@@ -196,6 +213,9 @@ def read_rig_log(path, settings):
                     stamp, position, velocity, effort = cdr.joint_state(record.data)
                     rows[sensor_of_topic[topic]].append(
                         (stamp, record.log_time, position, velocity, effort))
+                elif topic in channel_of_topic:
+                    scalar_rows[channel_of_topic[topic]].append(
+                        (record.log_time, cdr.float64(record.data)))
                 elif topic == itf.CMD_TOP_DRIVE_SPEED:
                     speed.append((record.log_time * 1e-9, cdr.float64(record.data)))
                 elif topic == itf.CMD_HOOK_LOAD:
@@ -221,15 +241,22 @@ def read_rig_log(path, settings):
         arrival = np.array([i[1] for i in items]) * 1e-9
         try:
             read = [values_from_joint_state(name, None, *i[2:]) for i in items]
-            values = {c: [r[c] for r in read] for c in read[0]}
+            values = {c: [r[c] for r in read] for c in read[0] if c not in scalar_rows}
         except (ValueError, KeyError):
             raise UsageError(f'{path}: {name} messages lack their fields (see drill-twin rig '
                              '--help for the layout)') from None
         sensors[name] = SensorSamples(stamp, arrival,
                                       {k: np.asarray(v, dtype=float) for k, v in values.items()})
-    if not sensors:
+    scalars = {}
+    for channel, items in scalar_rows.items():     # unstamped: received less the delay
+        if items:
+            arrival = np.array([i[0] for i in sorted(items)]) * 1e-9
+            scalars[channel] = SensorSamples(
+                arrival - settings.sensor_of(channel).delay_s, arrival,
+                {channel: np.array([i[1] for i in sorted(items)], dtype=float)})
+    if not sensors and not scalars:
         raise UsageError(f'{path}: no measurement topics ('
-                         + ', '.join(sensor_of_topic) + ')')
+                         + ', '.join([*sensor_of_topic, *channel_of_topic]) + ')')
     if not speed or not hook:
         raise UsageError(f'{path}: no commands on {itf.CMD_TOP_DRIVE_SPEED} and '
                          f'{itf.CMD_HOOK_LOAD}')
@@ -241,4 +268,4 @@ def read_rig_log(path, settings):
                       columns[6], holes)
     return RigLog(duration_s=duration, sensors=sensors, speed_commands=np.array(speed),
                   hook_commands=np.array(hook), truth=truth,
-                  metadata=metadata.get(METADATA, {}))
+                  metadata=metadata.get(METADATA, {}), scalars=scalars)

@@ -41,7 +41,8 @@ class TopicSpec(NamedTuple):
 
 
 def twin_topics(stations_m: Iterable[float] = (), *, tf: bool = False,
-                measurement_topics: Iterable[str] = ()) -> dict[str, TopicSpec]:
+                measurement_topics: Iterable[str] = (),
+                scalar_measurement_topics: Iterable[str] = ()) -> dict[str, TopicSpec]:
     """
     List every topic the twin publishes or subscribes.
 
@@ -49,6 +50,7 @@ def twin_topics(stations_m: Iterable[float] = (), *, tf: bool = False,
         displacement topic each).
     :param tf: include /tf and /tf_static (published where tf2_msgs is installed).
     :param measurement_topics: the rig's sensor topics the twin assimilates (JointState).
+    :param scalar_measurement_topics: its channels on topics of their own (Float64).
     """
     state, diagnostics, clock = itf.STATE_QOS, itf.DIAGNOSTICS_QOS, itf.CLOCK_QOS
     result = {command: TopicSpec(STRING if command in itf.MODE_COMMANDS else FLOAT64, state)
@@ -88,6 +90,8 @@ def twin_topics(stations_m: Iterable[float] = (), *, tf: bool = False,
         result[itf.vibration_displacement_topic(x_m)] = TopicSpec(VECTOR3_STAMPED, state)
     for topic in measurement_topics:
         result[topic] = TopicSpec(JOINT_STATE, state)
+    for topic in scalar_measurement_topics:
+        result[topic] = TopicSpec(FLOAT64, state)
     if tf:
         result[itf.TF] = TopicSpec(TF_MESSAGE, itf.TF_QOS)
         result[itf.TF_STATIC] = TopicSpec(TF_MESSAGE, itf.TF_STATIC_QOS)

@@ -28,20 +28,23 @@ class TwinLog:
     :param compression: chunk compression ('zstd', 'lz4', 'none').
     :param tf: record /tf and /tf_static too (needs tf2_msgs).
     :param measurement_topics: the rig's sensor topics the twin assimilates (JointState).
+    :param scalar_measurement_topics: its channels on topics of their own (Float64).
 
     Raises OSError if the bag cannot be created.
     """
 
     def __init__(self, path: str | Path, stations_m, metadata: TwinLogMetadata, *,
                  split_duration_s: float = DEFAULT_SPLIT_DURATION_S,
-                 compression: str = 'zstd', tf: bool = False, measurement_topics=()):
+                 compression: str = 'zstd', tf: bool = False, measurement_topics=(),
+                 scalar_measurement_topics=()):
         self.path = Path(path)
         self.error: str | None = None
         self._bag = BagWriter(self.path, split_duration_s=split_duration_s,
                               compression=compression)
         try:
-            for topic, spec in twin_topics(stations_m, tf=tf,
-                                           measurement_topics=measurement_topics).items():
+            for topic, spec in twin_topics(
+                    stations_m, tf=tf, measurement_topics=measurement_topics,
+                    scalar_measurement_topics=scalar_measurement_topics).items():
                 self._bag.add_topic(topic, spec.type_name, spec.qos)
             self._bag.add_metadata(RECORD_NAME, metadata.to_record())
         except BaseException:

@@ -93,15 +93,18 @@ def new_log_path(log_dir: str | Path) -> Path:
 
 
 def open_log(path: Path, params: TwinParameters, stations_m, metadata: TwinLogMetadata, *,
-             tf: bool = False, measurement_topics=()) -> TwinLog:
+             tf: bool = False, measurement_topics=(),
+             scalar_measurement_topics=()) -> TwinLog:
     """
     Open the run's log, the rosbag2 bag ``path``.
 
-    With /tf and /tf_static if ``tf``, and the rig's sensor topics the twin assimilates.
+    With /tf and /tf_static if ``tf``, and the rig's sensor topics the twin assimilates
+    (JointState; its channels on topics of their own: Float64).
     Raises OSError.
     """
     return TwinLog(path, stations_m, metadata, split_duration_s=params.log_split_s, tf=tf,
-                   measurement_topics=measurement_topics)
+                   measurement_topics=measurement_topics,
+                   scalar_measurement_topics=scalar_measurement_topics)
 
 
 def contact_node_depths_m(config) -> list[float]:

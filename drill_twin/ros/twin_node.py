@@ -28,6 +28,7 @@ simulated time (from zero in fast mode, from the first /clock message with use_s
 """
 from __future__ import annotations
 
+import math
 import sys
 import time
 
@@ -50,6 +51,7 @@ from drill_twin import __version__
 from drill_twin import interface as itf
 from drill_twin.assimilation.measurements import SENSOR_CHANNELS, values_from_joint_state
 from drill_twin.assimilation.sequential import Sample
+from drill_twin.assimilation.settings import SENSOR_OF
 from drill_twin.recording.qos import rclpy_qos_profile
 from drill_twin.ros import messages
 from drill_twin.ros.build import (build_engine, command_limits, log_metadata, new_log_path,
@@ -240,6 +242,12 @@ class TwinNode(Node):
                 JointState, topic, lambda message, t=topic, s=sensor:
                 self._on_measurement(s, t, message), rclpy_qos_profile(itf.MEASUREMENT_QOS))
             for topic, sensor in self.measurement_topics.items()}
+        self._measurements.update({
+            topic: self.create_subscription(
+                Float64, topic, lambda message, t=topic, c=channel:
+                self._on_scalar_measurement(c, t, message),
+                rclpy_qos_profile(itf.MEASUREMENT_QOS))
+            for topic, channel in self.scalar_measurement_topics.items()})
 
     @property
     def measurement_topics(self) -> dict[str, str]:
@@ -247,10 +255,40 @@ class TwinNode(Node):
         settings = self.engine.ensemble.assimilation
         if settings is None or not self.engine.assimilating:
             return {}
-        used = settings.filter.measurements
+        used = [c for c in settings.filter.measurements if c not in settings.scalar_topics()]
         return {getattr(settings.sensors, sensor).topic: sensor
                 for sensor, channels in SENSOR_CHANNELS.items()
                 if any(c in used for c in channels)}
+
+    @property
+    def scalar_measurement_topics(self) -> dict[str, str]:
+        """{topic: channel} of the filter's channels that come as std_msgs/Float64 alone."""
+        settings = self.engine.ensemble.assimilation
+        if settings is None or not self.engine.assimilating:
+            return {}
+        return {topic: channel for channel, topic in settings.scalar_topics().items()
+                if channel in settings.filter.measurements}
+
+    def _on_scalar_measurement(self, channel: str, topic: str, message: Float64) -> None:
+        """
+        Hand a channel's std_msgs/Float64 to the ensemble filter and log it.
+
+        Unstamped: taken as sampled now less its sensor's delay (``delay_s``).
+        """
+        now = self.twin_time_ns()
+        if self.log and self.pacer.started:
+            self.log.write(topic, message, now)
+        if not self.pacer.started:
+            self.engine.refuse_measurement(f'{topic}: received before the twin\'s clock '
+                                           f'started')
+            return
+        value = float(message.data)
+        if not math.isfinite(value):
+            self.engine.refuse_measurement(f'{topic}: {channel} = {value} is not finite')
+            return
+        settings = self.engine.ensemble.assimilation
+        stamp_s = self.engine.time_s - settings.sensor_of(channel).delay_s
+        self.engine.offer_measurement(Sample(SENSOR_OF[channel], stamp_s, {channel: value}))
 
     def _on_measurement(self, sensor: str, topic: str, message: JointState) -> None:
         """
@@ -269,6 +307,8 @@ class TwinNode(Node):
         try:
             values = values_from_joint_state(sensor, message.name, message.position,
                                              message.velocity, message.effort)
+            scalar = self.engine.ensemble.assimilation.scalar_topics()
+            values = {c: v for c, v in values.items() if c not in scalar}   # read on their own
         except ValueError as error:
             self.engine.refuse_measurement(f'{topic}: {error}')
             return
@@ -283,7 +323,7 @@ class TwinNode(Node):
         where = (f'logging to {self.log.path}' if self.log else
                  'logging from the first /clock' if p.log_enabled and self.sim_time
                  else 'no log')
-        topics = self.measurement_topics
+        topics = [*self.measurement_topics, *self.scalar_measurement_topics]
         assimilating = (f', assimilating {", ".join(topics)}' if topics else '')
         return (f'drill_twin {__version__}: {self.engine.ensemble.members} ensemble members '
                 f'(delta {self.engine.ensemble.dispersion:g}, seed {p.seed}){assimilating}, '
@@ -308,7 +348,8 @@ class TwinNode(Node):
         path = new_log_path(self.params.log_dir)
         try:
             return open_log(path, self.params, self.stations_m, metadata, tf=self.tf_enabled,
-                            measurement_topics=self.measurement_topics)
+                            measurement_topics=self.measurement_topics,
+                            scalar_measurement_topics=self.scalar_measurement_topics)
         except OSError as error:
             text = f'cannot write the log {path}: {error.strerror or error}'
             if self.params.on_log_error == 'exit':
@@ -612,7 +653,7 @@ class TwinNode(Node):
                     'ensemble_resets', 'retries', 'ensemble_members_touching_wall',
                     'ensemble_members_lifted_off'):
             values[key] = h.get(key, 0)
-        if self.measurement_topics:
+        if self.measurement_topics or self.scalar_measurement_topics:
             values.update(self._assimilation_values(h))
         return values
 
@@ -638,7 +679,9 @@ class TwinNode(Node):
             values['nis_per_measurement'] = 'none'
         if self.ticks and not new:
             self.monitor.note('warn', 'measurements', 'no measurement sample arrived on '
-                              + ', '.join(self.measurement_topics) + ' in the period: the '
+                              + ', '.join([*self.measurement_topics,
+                                           *self.scalar_measurement_topics])
+                              + ' in the period: the '
                               'ensemble runs in open loop')
         return values
 
