@@ -107,6 +107,36 @@ def test_the_parts_add_up_to_the_analysis(config):
     np.testing.assert_allclose(first - before[:, law], increment[:, law] / 10, atol=1e-15)
 
 
+def test_the_record_reports_the_analysis_not_its_first_part(config):
+    """
+    The analysis's record (published law and germ) is the analysed ensemble's.
+
+    Equal to the instantaneous analysis's record, and to the members' laws and germs once
+    the last part is in; not to the members' laws just after the first part.
+    """
+    records = {}
+    for increment_s in (0.0, 0.05):
+        def keep(sequential, increment_s=increment_s):
+            analyse = sequential._analyse_ready
+
+            def kept():
+                record = analyse()
+                if record is not None:
+                    records[increment_s] = (record, sequential.state.law_scales().mean(axis=0))
+                return record
+            sequential._analyse_ready = kept
+        sequential, _, _ = _run(config, increment_s, after_steps=PARTS + 2, before=keep)
+    (instant, _), (spread, just_after) = records[0.0], records[0.05]
+    for name in ('law_mean', 'law_lower', 'law_upper', 'germ_mean', 'germ_lower', 'germ_upper'):
+        np.testing.assert_allclose(getattr(spread, name), getattr(instant, name), rtol=1e-12)
+    np.testing.assert_allclose(spread.law_mean, sequential.state.law_scales().mean(axis=0),
+                               rtol=1e-12)
+    germs = sequential.state.germs()
+    np.testing.assert_allclose(spread.germ_mean, [germs[:, 0, 0].mean(), germs[:, 0, 1].mean(),
+                                                  germs[:, 1, 1].mean()], rtol=1e-9)
+    assert not np.allclose(just_after, spread.law_mean, rtol=1e-6, atol=0)
+
+
 def test_parameters_written_flags_every_step_that_moves_a_law(config):
     """The guard is told of each part (the law moves) and of nothing after the last one."""
     flags = []

@@ -252,6 +252,7 @@ def test_the_filter_estimates_the_laws_factors_and_publishes_them(config, walk):
     settings = load_assimilation(None, [
         'assimilation.filter.members=6', 'assimilation.filter.parameters=law',
         'assimilation.filter.model_error_bit_speed_rad_per_s=0.0',
+        'assimilation.filter.increment_duration_s=0.0',     # the members at once: compared
         f'assimilation.filter.parameter_walk_std={walk!r}',
         'assimilation.filter.measurements=[top_torque]'])
     spec = settings.filter

@@ -406,6 +406,7 @@ class SequentialFilter:
             self._refuse(f'analysis at {now:.3f} s skipped: it is not finite '
                          f'({used} sample(s) unused)')
             return None
+        target = analysed[:, :size].copy()   # what the record reports: the analysis itself
         if self.increment_steps > 1:         # the first of its parts now, the rest step by step
             self._increment = (analysed[:, :size] - forecast[:, :size]) / self.increment_steps
             self._increment_left = self.increment_steps - 1
@@ -429,7 +430,7 @@ class SequentialFilter:
         for column, j in self._bias_column.items():
             self._predicted[:, :, column] += self.channel_bias[:, j]
         self.analyses += 1
-        record = self._summary(now, result, rates[-1] if rates else None)
+        record = self._summary(now, result, target, rates[-1] if rates else None)
         self.history.append(record)
         return record
 
@@ -463,12 +464,20 @@ class SequentialFilter:
         germs = self.state.germs()
         return np.stack([germs[:, 0, 0], germs[:, 0, 1], germs[:, 1, 1]], axis=1)
 
-    def _summary(self, time_s: float, result, rate=None) -> AnalysisRecord:
+    def _summary(self, time_s: float, result, analysed: np.ndarray,
+                 rate=None) -> AnalysisRecord:
+        """
+        The record of an analysis: its parameters as analysed (``analysed``, (N, size)).
+
+        With an incremental update the members reach them within the increment's duration.
+        """
         germ, law = ((math.nan,) * 3,) * 3, ((math.nan,) * 5,) * 3
-        if self.state.parameters != 'none':
-            germ = _mean_and_bounds(self.germ_entries())
-        if self.state.parameters == 'law':
-            law = _mean_and_bounds(self.state.law_scales())
+        germs, scales = self.state.parameters_of(analysed)
+        if germs is not None:
+            germ = _mean_and_bounds(np.stack([germs[:, 0, 0], germs[:, 0, 1], germs[:, 1, 1]],
+                                             axis=1))
+        if scales is not None:
+            law = _mean_and_bounds(scales)
         bias = _mean_and_bounds(self.channel_bias) if self.bias_channels else ((),) * 3
         observed, predicted = ((rate.observed_m_per_s, float(rate.predicted.mean()))
                                if rate is not None else (math.nan, math.nan))

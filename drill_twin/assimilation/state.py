@@ -196,12 +196,22 @@ class MemberState:
         pressed = np.minimum(sim.hole_u()[:m] + self._lobes(state.q[:m])
                              - state.q[:m] @ self._bit_row, 0.0)
         offset = np.where(was_on_bottom, pressed, np.maximum(vectors[:, 2 * k], 0.0))
+        germs, scales = self.parameters_of(vectors)
+        sim.set_members(q, rate, q @ self._bit_row + offset - self._lobes(q), germs, scales)
+
+    def parameters_of(self, vectors: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """
+        Return the germs (members, 2, 2) and law factors (members, 5) state vectors stand for.
+
+        As :meth:`write` puts them (within their bounds); None where not estimated.
+        """
+        k = self.columns.size
         germs = (coordinates_to_germ(bounded_coordinates(vectors[:, 2 * k + 1:2 * k + 4]))
                  if self.parameters != 'none' else None)
         limit = np.log(LAW_SCALE_LIMIT)
         scales = (np.exp(np.clip(vectors[:, 2 * k + 4:2 * k + 9], -limit, limit))
                   if self.parameters == 'law' else None)
-        sim.set_members(q, rate, q @ self._bit_row + offset - self._lobes(q), germs, scales)
+        return germs, scales
 
     def _lobes(self, q: np.ndarray):
         """
