@@ -467,7 +467,7 @@ class SequentialFilter:
     def _summary(self, time_s: float, result, analysed: np.ndarray,
                  rate=None) -> AnalysisRecord:
         """
-        The record of an analysis: its parameters as analysed (``analysed``, (N, size)).
+        Return the record of an analysis, its parameters as analysed (``analysed``: (N, size)).
 
         With an incremental update the members reach them within the increment's duration.
         """
