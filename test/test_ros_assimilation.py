@@ -39,7 +39,13 @@ def _reading(stamp, name, position=(), velocity=(), effort=()):
 
 
 def _feeder(twin, rig, torque_offset_nm: float = 0.0):
-    """Return a function that sends the rig's reading of the latest top state heard (10 Hz)."""
+    """
+    Return a function that sends the rig's reading of the latest top state heard (10 Hz).
+
+    ``rig``: the publishers by topic; with '/rig/block_position' (std_msgs/Float64) the block
+    position goes there, else with the hook load in the hook's JointState.
+    """
+    from std_msgs.msg import Float64
     sent = 0
 
     def feed():
@@ -52,8 +58,11 @@ def _feeder(twin, rig, torque_offset_nm: float = 0.0):
         torque, block = top.effort[0] + torque_offset_nm, top.position[1]
         rig['/rig/top_drive'].publish(_reading(stamp_ns(top), 'top_drive',
                                                velocity=[top.velocity[0]], effort=[torque]))
-        rig['/rig/hook'].publish(_reading(stamp_ns(top), 'hook', position=[block],
-                                          effort=[top.effort[1]]))
+        if '/rig/block_position' in rig:
+            rig['/rig/block_position'].publish(Float64(data=float(block)))
+        else:
+            rig['/rig/hook'].publish(_reading(stamp_ns(top), 'hook', position=[block],
+                                              effort=[top.effort[1]]))
         return False
     return feed
 
@@ -216,26 +225,13 @@ def test_a_channel_on_a_float64_topic_is_assimilated(twin_factory, tmp_path):  #
     assert twin.node.scalar_measurement_topics == {'/rig/block_position': 'block_position'}
     from sensor_msgs.msg import JointState
     rig = {'/rig/top_drive': twin.probe.create_publisher(JointState, '/rig/top_drive',
-                                                         rclpy_qos_profile(itf.STATE_QOS))}
-    block = twin.probe.create_publisher(Float64, '/rig/block_position',
-                                        rclpy_qos_profile(itf.STATE_QOS))
-    twin.spin_until(lambda: block.get_subscription_count() > 0
-                    and rig['/rig/top_drive'].get_subscription_count() > 0,
+                                                         rclpy_qos_profile(itf.STATE_QOS)),
+           '/rig/block_position': twin.probe.create_publisher(
+               Float64, '/rig/block_position', rclpy_qos_profile(itf.STATE_QOS))}
+    block = rig['/rig/block_position']
+    twin.spin_until(lambda: all(p.get_subscription_count() for p in rig.values()),
                     'the twin subscribing to the rig')
-    sent = 0
-
-    def feed():
-        nonlocal sent
-        tops = twin.received[itf.TOP_STATE]
-        if not tops or stamp_ns(tops[-1]) < (sent + 1) * 100_000_000:
-            return False
-        top = tops[-1]
-        sent = stamp_ns(top) // 100_000_000
-        rig['/rig/top_drive'].publish(_reading(stamp_ns(top), 'top_drive',
-                                               velocity=[top.velocity[0]],
-                                               effort=[top.effort[0]]))
-        block.publish(Float64(data=float(top.position[1])))
-        return False
+    feed = _feeder(twin, rig)
 
     sequential = twin.node.engine.ensemble_runner.filter
     offered, offer = [], sequential.offer

@@ -269,18 +269,22 @@ class TwinNode(Node):
         return {topic: channel for channel, topic in settings.scalar_topics().items()
                 if channel in settings.filter.measurements}
 
+    def _received(self, topic: str, message) -> bool:
+        """Log a rig message as received; whether the twin's clock runs (else it is refused)."""
+        if self.log and self.pacer.started:
+            self.log.write(topic, message, self.twin_time_ns())
+        if not self.pacer.started:
+            self.engine.refuse_measurement(f'{topic}: received before the twin\'s clock '
+                                           f'started')
+        return self.pacer.started
+
     def _on_scalar_measurement(self, channel: str, topic: str, message: Float64) -> None:
         """
         Hand a channel's std_msgs/Float64 to the ensemble filter and log it.
 
         Unstamped: taken as sampled now less its sensor's delay (``delay_s``).
         """
-        now = self.twin_time_ns()
-        if self.log and self.pacer.started:
-            self.log.write(topic, message, now)
-        if not self.pacer.started:
-            self.engine.refuse_measurement(f'{topic}: received before the twin\'s clock '
-                                           f'started')
+        if not self._received(topic, message):
             return
         value = float(message.data)
         if not math.isfinite(value):
@@ -297,12 +301,7 @@ class TwinNode(Node):
         Its stamp: the header's, in the twin's clock (an unset stamp is taken as now); a bad
         sample is refused with a diagnostic.
         """
-        now = self.twin_time_ns()
-        if self.log and self.pacer.started:
-            self.log.write(topic, message, now)
-        if not self.pacer.started:
-            self.engine.refuse_measurement(f'{topic}: received before the twin\'s clock '
-                                           f'started')
+        if not self._received(topic, message):
             return
         try:
             values = values_from_joint_state(sensor, message.name, message.position,
