@@ -459,11 +459,6 @@ class SequentialFilter:
         finite = self._times[np.isfinite(self._times)]
         return float(finite.min()) if finite.size else math.nan
 
-    def germ_entries(self) -> np.ndarray:
-        """(N, 3): G11, G12, G22 of the analysed members' germs."""
-        germs = self.state.germs()
-        return np.stack([germs[:, 0, 0], germs[:, 0, 1], germs[:, 1, 1]], axis=1)
-
     def _summary(self, time_s: float, result, analysed: np.ndarray,
                  rate=None) -> AnalysisRecord:
         """
@@ -473,7 +468,7 @@ class SequentialFilter:
         """
         germ, law = ((math.nan,) * 3,) * 3, ((math.nan,) * 5,) * 3
         germs, scales = self.state.parameters_of(analysed)
-        if germs is not None:
+        if germs is not None:                 # G11, G12, G22
             germ = _mean_and_bounds(np.stack([germs[:, 0, 0], germs[:, 0, 1], germs[:, 1, 1]],
                                              axis=1))
         if scales is not None:

@@ -307,12 +307,11 @@ class AssimilationConfig:
     source: str = '<defaults>'
 
     def __post_init__(self):
-        sensor_topics = [getattr(self.sensors, name).topic
-                         for name in ('top_drive', 'hook', 'downhole')]
-        for name, topic in self.scalar_topics().items():
-            _check(topic not in sensor_topics and list(self.scalar_topics().values()).count(
-                topic) == 1, f'channels.{name}.topic', "must be a topic of the channel's own",
-                topic)
+        taken = [getattr(self.sensors, name).topic for name in ('top_drive', 'hook', 'downhole')]
+        for name, topic in self.scalar_topics().items():   # a topic carries one thing
+            _check(topic not in taken, f'channels.{name}.topic',
+                   "must be a topic of the channel's own", topic)
+            taken.append(topic)
         for channel in self.estimated_bias_channels():
             other = BIAS_COUNTERPART.get(channel)
             _check(other is not None, f'channels.{channel}.bias_prior_std',

@@ -242,6 +242,8 @@ class TwinNode(Node):
                 JointState, topic, lambda message, t=topic, s=sensor:
                 self._on_measurement(s, t, message), rclpy_qos_profile(itf.MEASUREMENT_QOS))
             for topic, sensor in self.measurement_topics.items()}
+        settings = self.engine.ensemble.assimilation      # channels read on their own topics
+        self._scalar_channels = frozenset(settings.scalar_topics() if settings else ())
         self._measurements.update({
             topic: self.create_subscription(
                 Float64, topic, lambda message, t=topic, c=channel:
@@ -306,8 +308,8 @@ class TwinNode(Node):
         try:
             values = values_from_joint_state(sensor, message.name, message.position,
                                              message.velocity, message.effort)
-            scalar = self.engine.ensemble.assimilation.scalar_topics()
-            values = {c: v for c, v in values.items() if c not in scalar}   # read on their own
+            values = {c: v for c, v in values.items()               # the others: on their own
+                      if c not in self._scalar_channels}
         except ValueError as error:
             self.engine.refuse_measurement(f'{topic}: {error}')
             return
