@@ -130,6 +130,8 @@ class StateGuard:
                 for i, scales in enumerate(law_scales)]).reshape(-1)
         self.torque_on_bit_max_nm = FORCE_MULTIPLE * np.maximum(largest, TORQUE_FLOOR_NM)
         """Scalar (mean law) or (m,) (the members' laws) (N m)."""
+        self._torque_max = np.ascontiguousarray(np.atleast_1d(self.torque_on_bit_max_nm),
+                                                dtype=float)
 
     def rotation_speed_max(self, top_speed_rad_per_s: float) -> float:
         """Bound of |bit speed| (rad/s) at a top-drive speed."""
@@ -188,13 +190,14 @@ class StateGuard:
         if self.lateral:
             with np.errstate(invalid='ignore', over='ignore'):    # a diverged member's
                 v, w = self._node_displacements(q)
+        hole = np.asarray(hole, dtype=float)
+        if hole.shape != (members,) or not hole.flags.c_contiguous:
+            hole = np.full(members, hole)
         screen_members(
             q, np.ascontiguousarray(state.q_rate), np.ascontiguousarray(state.q_acceleration),
             self._axial_start, self._bit_row, self._top_row, forces.rop_m_per_s,
             forces.bit_speed_rad_per_s, forces.weight_on_bit_n, forces.torque_on_bit_nm,
-            np.ascontiguousarray(np.broadcast_to(np.asarray(hole, dtype=float), (members,))),
-            bounds, np.ascontiguousarray(np.atleast_1d(self.torque_on_bit_max_nm), dtype=float),
-            bool(self.lateral), v, w, self._lateral_max, bad)
+            hole, bounds, self._torque_max, bool(self.lateral), v, w, self._lateral_max, bad)
         return bad
 
     def _bounds(self, top_speed_rad_per_s: float) -> dict[str, float]:
@@ -233,8 +236,7 @@ class StateGuard:
     def _node_displacements(self, q) -> tuple[np.ndarray, np.ndarray]:
         """Return every node's lateral displacements (v, w), (m, n_nodes) each (m)."""
         (y_columns, y_rows), (z_columns, z_rows) = self._bending
-        return (np.ascontiguousarray(q[:, y_columns]) @ y_rows,
-                np.ascontiguousarray(q[:, z_columns]) @ z_rows)
+        return q[:, y_columns] @ y_rows, q[:, z_columns] @ z_rows
 
     def _reason(self, k: int, values: dict, top_speed_rad_per_s: float) -> str:
         """Why member k breaks a bound (the first bound it breaks), one phrase."""
