@@ -479,6 +479,25 @@ class NewmarkIntegrator:
         return q @ self.stiffness.T
 
     # -- one step ------------------------------------------------------------------------
+    def load_kernels(self, state: BatchState, top_speed_rad_per_s: float,
+                     hook_load_n) -> None:
+        """
+        Load the compiled step for this batch by a step that leaves no trace.
+
+        numba loads a kernel from its on-disk cache (or compiles it) at its first call in a
+        process: 0.11-0.13 s for the paper model's step, measured. Done here, at set-up, the
+        time loop's first step costs what the others do. The step's result is dropped; the
+        contraction rates, the contact and lift-off flags and the counters are put back as
+        they were (every evaluation sets the top angle it reads from its own state).
+        """
+        rate = None if self._rate is None else self._rate.copy()
+        active, before, counters = self._active, self._before_step, replace(self.counters)
+        with np.errstate(all='ignore'):
+            self.step(state, top_speed_rad_per_s, hook_load_n)
+        self._rate, self._active, self._before_step = rate, active, before
+        for name in vars(counters):                   # in place: callers hold the object
+            setattr(self.counters, name, getattr(counters, name))
+
     def step(self, state: BatchState, top_speed_rad_per_s: float,
              hook_load_n: float) -> tuple[BatchState, StepResult]:
         """

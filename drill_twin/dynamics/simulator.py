@@ -202,6 +202,10 @@ class Simulator:
         touched or left the wall in them (all members)."""
         self._on_bottom = self.on_bottom()
         self._observer = None
+        # The compiled step and observation are loaded now, not in the time loop's first step.
+        self.integrator.load_kernels(self.state, self.state.top_speed_rad_per_s,
+                                     self.hook_load_command_n)
+        self.observe()
         # The rig's drives (issue 13, docs/DRIVES.md): with top_drive.mode dynamic or a
         # drawworks mode other than hook_load, they take over self.top_drive; else no change.
         from drill_twin.dynamics.rig import attach_drives
