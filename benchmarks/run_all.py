@@ -18,16 +18,13 @@ time of the twin's tick, mean model and 64 members in one process
 (``benchmarks/twin_tick.py``: p50, p99 against the 10 ms budget).
 
 On a shared machine the absolute figures move with the load; the matrix rate measured in the
-same run and the fractions say how much. This VM also runs at about half its speed for
-periods of seconds to minutes while its load average stays near zero and no steal time shows
-(measured 2026-12-03: a fixed pure-Python loop took 5.4 ms or 10.7 ms in consecutive blocks
-of one process, the mean model's step 121 or 212 us with it): the batches are therefore timed
-in blocks, each after a fixed reference workload (:func:`reference_ms`, the interpreter's
-speed now), and each batch's RTF is also given over its blocks at the machine's full speed
-(reference within FULL_SPEED_MARGIN of the run's fastest), next to the share of such blocks. The CPU-time columns (this process's CPU seconds,
-``time.process_time``) move much less than the wall-clock ones when other processes compete
-for the cores; the fraction of the matrix-product limit is taken on CPU time, like the
-best-of timing of the product.
+same run and the fractions say how much. This VM also slows down by up to half for periods of
+seconds to minutes while its load average stays near zero and no steal time shows (measured
+2026-12-03: a fixed pure-Python loop took 5.4 ms or 10.7 ms in consecutive blocks of one
+process, the mean model's step 121 or 212 us with it; memory-bound references track the step
+no better, correlation 0.2-0.7): each batch is therefore timed in BLOCKS blocks and its RTF
+given over all of them (what a user gets now), for the median block and for the fastest
+block (the code's speed on a quiet machine, as timeit's best of repeats).
 """
 from __future__ import annotations
 
@@ -52,10 +49,7 @@ from drill_twin.modal.reduced_basis import modal_analysis
 SIMULATE_RUNS = 3
 """Runs of ``drill-twin simulate`` (each a process of its own)."""
 BLOCKS = 10
-"""Blocks a batch's timed steps are split into (a reference workload before each)."""
-FULL_SPEED_MARGIN = 1.15
-"""A block ran at the machine's full speed when the reference before it took at most this
-multiple of the run's fastest reference."""
+"""Blocks a batch's timed steps are split into (timed each)."""
 MATRIX_ROWS, MATRIX_COLUMNS = 342, 166
 """The dense product of the issue's yardstick: the paper model's field-wise DOFs by its
 reduced coordinates."""
@@ -79,23 +73,6 @@ def matrix_rate(members: int, seconds: float = 0.3) -> float:
     return 2.0 * MATRIX_ROWS * MATRIX_COLUMNS * members / best / 1e9
 
 
-def reference_ms() -> float:
-    """
-    Return the time of a fixed pure-Python workload (ms): the interpreter's speed now.
-
-    100 000 multiply-adds on Python ints, best of three (about 5 ms on this VM at its full
-    speed, 10-11 ms in its slow phases).
-    """
-    best = np.inf
-    for _ in range(3):
-        start = time.perf_counter()
-        total = 0
-        for i in range(100_000):
-            total += i * i
-        best = min(best, time.perf_counter() - start)
-    return 1e3 * best
-
-
 def dense_flops_per_evaluation(system) -> float:
     """Flops of the dense products of one force evaluation, per member (module docstring)."""
     b = system.blocks
@@ -108,10 +85,10 @@ def dense_flops_per_evaluation(system) -> float:
 
 def measure_batch(config, system, members: int, seconds: float) -> dict:
     """
-    Time ``seconds`` of model time of a batch, in BLOCKS blocks, a reference before each.
+    Time ``seconds`` of model time of a batch, in BLOCKS blocks.
 
-    Returns the RTF and rates over all blocks, and per block the wall time, CPU time and the
-    reference (``blocks``: (wall s, cpu s, reference ms) each) for the full-speed figures.
+    Returns the RTF and rates over all blocks, and the RTF of the median and of the fastest
+    block (wall clock).
     """
     simulator = Simulator(config, members=members, system=system)
     for _ in range(20):                                   # warm-up (and the kernels' load)
@@ -122,11 +99,10 @@ def measure_batch(config, system, members: int, seconds: float) -> dict:
     rate_before = matrix_rate(members)
     blocks = []
     for _ in range(BLOCKS):
-        reference = reference_ms()
         start, cpu = time.perf_counter(), time.process_time()
         for _ in range(steps // BLOCKS):
             simulator.step()
-        blocks.append((time.perf_counter() - start, time.process_time() - cpu, reference))
+        blocks.append((time.perf_counter() - start, time.process_time() - cpu))
     wall, cpu = (sum(b[0] for b in blocks), sum(b[1] for b in blocks))
     rate_after = matrix_rate(members)
     per_step = (counters.force_evaluations - evaluations) / steps
@@ -136,29 +112,14 @@ def measure_batch(config, system, members: int, seconds: float) -> dict:
     return {'members': members, 'rtf': simulated / wall, 'member_rtf': members * simulated / wall,
             'cpu_rtf': simulated / cpu, 'member_cpu_rtf': members * simulated / cpu,
             'evaluations_per_step': per_step, 'gflops': rate, 'fraction': limit / cpu,
-            'cpu_share': cpu / wall, 'step_cpu_ms': 1e3 * cpu / steps, 'blocks': blocks,
-            'block_simulated_s': simulated / BLOCKS}
+            'cpu_share': cpu / wall, 'step_cpu_ms': 1e3 * cpu / steps,
+            'median_block_rtf': simulated / BLOCKS / float(np.median([b[0] for b in blocks])),
+            'best_block_rtf': simulated / BLOCKS / min(b[0] for b in blocks)}
 
 
-def full_speed(results: list[dict]) -> tuple[float, dict]:
-    """
-    Return the run's fastest reference (ms) and, by batch size, (RTF over the blocks at full
-    speed or NaN, their share of the blocks).
-    """
-    fastest = min(b[2] for r in results for b in r['blocks'])
-    out = {}
-    for r in results:
-        fast = [b for b in r['blocks'] if b[2] <= FULL_SPEED_MARGIN * fastest]
-        rtf = (len(fast) * r['block_simulated_s'] / sum(b[0] for b in fast)
-               if fast else float('nan'))
-        out[r['members']] = (rtf, len(fast) / len(r['blocks']))
-    return fastest, out
-
-
-def simulate_command(seconds: float) -> tuple[float, float, float, float]:
+def simulate_command(seconds: float) -> tuple[float, float, float]:
     """(RTF printed by ``drill-twin simulate --duration seconds``, wall time and CPU time of
-    the command, the reference (ms) just before it)."""
-    reference = reference_ms()
+    the command)."""
     with tempfile.TemporaryDirectory() as folder:
         start, cpu = time.perf_counter(), os.times()
         out = subprocess.run([sys.executable, '-m', 'drill_twin.cli.main', 'simulate',
@@ -169,7 +130,7 @@ def simulate_command(seconds: float) -> tuple[float, float, float, float]:
     match = re.search(r'real-time factor ([0-9.]+)', out.stdout)
     child_cpu = (end.children_user - cpu.children_user) + (end.children_system
                                                             - cpu.children_system)
-    return float(match.group(1)), wall, child_cpu, reference
+    return float(match.group(1)), wall, child_cpu
 
 
 def twin_tick_command(ticks: int) -> str:
@@ -214,26 +175,19 @@ def main() -> None:
                   f'{r["member_cpu_rtf"]:>15.1f} {r["step_cpu_ms"]:>8.3f} '
                   f'{r["evaluations_per_step"]:>10.2f} {r["gflops"]:>12.1f} '
                   f'{100 * r["fraction"]:>8.1f}% {r["cpu_share"]:>9.2f}', flush=True)
-        fastest, fast = full_speed(results)
-        print(f'at the machine\'s full speed (blocks whose reference took <= '
-              f'{FULL_SPEED_MARGIN:g} x the run\'s fastest, {fastest:.2f} ms; '
-              f'{BLOCKS} blocks a batch):')
+        print(f'RTF by block ({BLOCKS} blocks a batch, wall clock): median / fastest')
         for r in results:
-            rtf, share = fast[r['members']]
-            references = [b[2] for b in r['blocks']]
-            print(f'{r["members"]:>7} RTF {rtf:>7.2f}  member-s/s {r["members"] * rtf:>7.1f}  '
-                  f'({share:.0%} of its blocks; reference {min(references):.2f}-'
-                  f'{max(references):.2f} ms)')
+            print(f'{r["members"]:>7} {r["median_block_rtf"]:>8.2f} / {r["best_block_rtf"]:>7.2f}'
+                  f'  member-s/s {r["members"] * r["median_block_rtf"]:>7.1f} / '
+                  f'{r["members"] * r["best_block_rtf"]:>7.1f}')
     if args.simulate > 0:
         runs = [simulate_command(args.simulate) for _ in range(SIMULATE_RUNS)]
         rtfs = ' / '.join(f'{r[0]:.2f}' for r in runs)
         median = float(np.median([r[0] for r in runs]))
-        wall, cpu = np.median([r[1:3] for r in runs], axis=0)
-        references = ' / '.join(f'{r[3]:.2f}' for r in runs)
+        wall, cpu = np.median([r[1:] for r in runs], axis=0)
         print(f'drill-twin simulate --duration {args.simulate:g}, {SIMULATE_RUNS} runs: '
               f'real-time factor {rtfs} (median {median:.2f}; its loop, wall clock); a command '
-              f'took {wall:.1f} s wall, {cpu:.1f} s CPU (medians, start-up included); the '
-              f'reference just before each: {references} ms')
+              f'took {wall:.1f} s wall, {cpu:.1f} s CPU (medians, start-up included)')
     if args.ticks > 0:
         print(f'twin tick (benchmarks/twin_tick.py, one process): {twin_tick_command(args.ticks)}')
     print(f'load average at the end {os.getloadavg()[0]:.2f}')
