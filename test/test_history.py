@@ -1,11 +1,17 @@
 """The recorder of observations (drill_twin.simulation.history): what goes in comes out."""
 import dataclasses
 
+from pathlib import Path
+
 import numpy as np
+
+from drill_twin.config import load_config
 
 from drill_twin.dynamics.simulator import Observation
 from drill_twin.simulation.history import (BIT_CHANNELS, SHARED_CHANNELS, STATION_RECORDS,
                                            History)
+
+REPO = Path(__file__).resolve().parents[1]
 
 
 def _observation(rng, time_s, members, stations, nodes):
@@ -55,3 +61,37 @@ def test_every_channel_comes_out_time_last_as_it_was_recorded():
         assert recorded.shape == (members, stations, 3, samples)
         assert recorded.flags.c_contiguous
         np.testing.assert_array_equal(recorded, np.stack([getattr(o, name) for o in seen], -1))
+
+
+def test_the_simulator_records_what_it_observes():
+    """record_simulator writes what record(observe()) writes, bit for bit, on and off the wall."""
+    from drill_twin.dynamics.simulator import Simulator
+    from drill_twin.uncertainty.germ import germs_for_realizations
+
+    members = 3                  # an imbalance of m e = 400 kg m at 1500 m: on the wall at 0.3 s
+    config = load_config(REPO / 'config' / 'ritto2009_lateral.yaml',
+                         ['excitation.imbalance.mass_kg=8000.0'])
+    simulator = Simulator(config, members=members,
+                          germs=germs_for_realizations(0.1, 5, range(members)))
+    stations = [s.x_m for s in simulator.system.stations]
+    direct, observed = (History(members, len(stations), 40, simulator.dt, stations)
+                        for _ in range(2))
+    touched = 0
+    for _ in range(40):
+        for _ in range(4):
+            simulator.step()
+        direct.record_simulator(simulator)
+        observed.record(simulator.observe())
+        touched += int(simulator.last.contact.in_contact.any())
+    assert touched > 0                                  # the wall's channels are exercised
+    first, second = (h.result([0] * members, [0] * members, 1, 1, 1.0) for h in (direct,
+                                                                                 observed))
+    np.testing.assert_array_equal(first.time_s, second.time_s)
+    assert first.channels.keys() == second.channels.keys()
+    for name in first.channels:
+        assert first.channels[name].dtype == second.channels[name].dtype
+        np.testing.assert_array_equal(first.channels[name], second.channels[name])
+    for name in first.shared:
+        np.testing.assert_array_equal(first.shared[name], second.shared[name])
+    for name in STATION_RECORDS:
+        np.testing.assert_array_equal(getattr(first, name), getattr(second, name))

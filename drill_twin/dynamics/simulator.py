@@ -30,6 +30,7 @@ import numpy as np
 
 from drill_twin.config.schema import DrillStringConfig
 from drill_twin.dynamics import observed_bit
+from drill_twin.dynamics.observed_bit import ObservedArrays
 from drill_twin.dynamics.bit_rock import BitRockLaw
 from drill_twin.dynamics.contact import ContactForces
 from drill_twin.dynamics.contact_events import ContactEpisodes, LiftOffEpisodes, node_gap_m
@@ -634,68 +635,74 @@ class Simulator:
 
         ``detailed``: the stations, the top torque and the hook motion are computed for the
         first ``detailed`` members only (all by default); the bit quantities always for all.
+        The arrays are the observation's own (the contact's are the last evaluation's).
         """
-        state, forces = self.state, self.last
-        observer = self._observer
-        if observer is None:
-            observer = self._observer = _Observer(self.system)
-        top, top_acceleration = state.top_speed_rad_per_s, state.top_acceleration_rad_per_s2
         keep = self.members if detailed is None else min(int(detailed), self.members)
-        # The reduced rows of every observed quantity, applied once per state vector (in
-        # one product when every member is detailed).
-        if keep == self.members:
-            rows = observer.rows(np.concatenate((state.q, state.q_rate, state.q_acceleration)))
-            q, rate, acceleration = rows[:keep], rows[keep:2 * keep], rows[2 * keep:]
-        else:
-            q = observer.rows(state.q)
-            rate = observer.rows(state.q_rate[:keep])
-            acceleration = observer.rows(state.q_acceleration[:keep])
-        stations = len(self.system.stations)
-        fields, spins = observer.fields, observer.spins
-        hole = state.hole_u if state.hole_u is not None else np.ascontiguousarray(
-            q[:, observer.bit_u])
-        height, height_rate = self.integrator.bottom_surface(state, forces.bit_speed_rad_per_s)
-        derived = np.empty((len(observed_bit.DERIVED), self.members))
-        on_bottom = np.empty(self.members, dtype=bool)
-        # The torque balance of the whole string about x (the rigid rotation costs no
-        # strain), the bit's depth and the hole's, the rate the hole deepens (relative to the
-        # surface of a lobed bottom, which moves), the depth of cut.
-        observed_bit.derive(q, rate, acceleration, observer.driven, top, top_acceleration,
-                            forces.full, observer.torsion.start, observer.torsion.stop,
-                            observer.columns, forces.rop_m_per_s, forces.bit_speed_rad_per_s,
-                            height, height_rate, hole, self.system.model.mesh.total_length_m,
-                            self.law.e, state.top_angle_rad, derived, on_bottom)
-        depth, rop, angle, depth_of_cut, hole_depth, top_torque = derived
+        out = ObservedArrays(1, self.members, len(self.system.stations))
+        self.observe_into(out, 0, keep)
+        floats, flags, stations = out.floats[:, 0], out.flags[:, 0], out.stations[:, 0, :keep]
+        state, forces = self.state, self.last
+        depth = floats[observed_bit.BIT_DEPTH]
         return Observation(
             time_s=state.time_s,
             depth_m=depth,
-            rop_m_per_s=rop,
-            angle_rad=angle,
-            speed_rad_per_s=forces.bit_speed_rad_per_s,
-            weight_on_bit_n=forces.weight_on_bit_n,
-            torque_on_bit_nm=forces.torque_on_bit_nm,
-            depth_of_cut_m_per_rad=depth_of_cut,
-            lifted=forces.lifted,
-            top_torque_nm=top_torque[:keep],
-            top_speed_rad_per_s=top,
+            rop_m_per_s=floats[observed_bit.ROP],
+            angle_rad=floats[observed_bit.ANGLE],
+            speed_rad_per_s=floats[observed_bit.SPEED],
+            weight_on_bit_n=floats[observed_bit.WOB],
+            torque_on_bit_nm=floats[observed_bit.TOB],
+            depth_of_cut_m_per_rad=floats[observed_bit.DEPTH_OF_CUT],
+            lifted=flags[observed_bit.LIFTED],
+            top_torque_nm=floats[observed_bit.TOP_TORQUE, :keep],
+            top_speed_rad_per_s=state.top_speed_rad_per_s,
             top_angle_rad=state.top_angle_rad,
             hook_load_n=state.hook_load_n,
-            hook_position_m=q[:keep, observer.hook],
-            hook_velocity_m_per_s=rate[:, observer.hook],
-            station_displacement_m=q[:keep, fields].reshape(keep, stations, 3),
-            station_velocity_m_per_s=rate[:, fields].reshape(keep, stations, 3),
-            station_acceleration_m_per_s2=acceleration[:, fields].reshape(keep, stations, 3),
-            station_spin_rate_rad_per_s=rate[:, spins].reshape(keep, stations, 3),
+            hook_position_m=floats[observed_bit.HOOK_POSITION, :keep],
+            hook_velocity_m_per_s=floats[observed_bit.HOOK_VELOCITY, :keep],
+            station_displacement_m=stations[0],
+            station_velocity_m_per_s=stations[1],
+            station_acceleration_m_per_s2=stations[2],
+            station_spin_rate_rad_per_s=stations[3],
             contact_force_n=forces.contact.radial_force_n,
             in_contact=forces.contact.in_contact,
             impacts_so_far=self.impact_count.copy(),
             lift_offs_so_far=self.lift_off_count.copy(),
             bit_depth_m=depth,
-            hole_depth_m=hole_depth,
-            on_bottom=on_bottom,
-            bit_axial_velocity_m_per_s=forces.rop_m_per_s,
+            hole_depth_m=floats[observed_bit.HOLE_DEPTH],
+            on_bottom=flags[observed_bit.ON_BOTTOM],
+            bit_axial_velocity_m_per_s=floats[observed_bit.AXIAL_VELOCITY],
             landings_so_far=self.landing_count.copy(),
         )
+
+    def observe_into(self, out: ObservedArrays, k: int, detailed: int | None = None) -> None:
+        """
+        Write the current observation at record ``k`` of ``out`` (one compiled call).
+
+        The quantities of :meth:`observe`, in the layout of
+        :class:`~drill_twin.dynamics.observed_bit.ObservedArrays`; ``detailed`` as there.
+        """
+        state, forces = self.state, self.last
+        observer = self._observer
+        if observer is None:
+            observer = self._observer = _Observer(self.system)
+        keep = self.members if detailed is None else min(int(detailed), self.members)
+        height, height_rate = self.integrator.bottom_surface(state, forces.bit_speed_rad_per_s)
+        has_hole = state.hole_u is not None
+        # The torque balance of the whole string about x (the rigid rotation costs no
+        # strain), the bit's depth and the hole's, the rate the hole deepens (relative to the
+        # surface of a lobed bottom, which moves), the depth of cut.
+        observed_bit.observe_into(
+            k, np.ascontiguousarray(state.q), np.ascontiguousarray(state.q_rate),
+            np.ascontiguousarray(state.q_acceleration), keep, observer.operator, observer.hook,
+            observer.fields.start, observer.spins.start, observer.driven,
+            state.top_speed_rad_per_s, state.top_acceleration_rad_per_s2, forces.full,
+            observer.torsion.start, observer.torsion.stop, observer.columns,
+            forces.rop_m_per_s, forces.bit_speed_rad_per_s, forces.lifted,
+            forces.weight_on_bit_n, forces.torque_on_bit_nm, height, height_rate,
+            state.hole_u if has_hole else observer.no_hole, has_hole,
+            self.system.model.mesh.total_length_m, self.law.e, state.top_angle_rad,
+            forces.contact.radial_force_n, forces.contact.in_contact, self.impact_count,
+            self.lift_off_count, self.landing_count, *out.arrays)
 
     # -- initial state -------------------------------------------------------------------
     def _initial_coordinates(self, top_speed: float, lateral: bool = True,
@@ -799,6 +806,7 @@ class _Observer:
         self.torsion = system.field(1)
         self.columns = np.array([self.mass, self.damping, self.bit_u, self.bit_angle],
                                 dtype=np.int64)
+        self.no_hole = np.empty(0)
 
     def rows(self, q: np.ndarray) -> np.ndarray:
         """Return the observed rows of reduced vectors q (m, n): (m, k)."""

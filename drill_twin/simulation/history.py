@@ -5,6 +5,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from drill_twin.dynamics.observed_bit import (FLAG_RECORDS, FLOAT_RECORDS, MAX_CONTACT_FORCE,
+                                              STATION_RECORDS, ObservedArrays)
 from drill_twin.dynamics.simulator import Observation
 
 # Per-member channels: name -> (Observation attribute, unit) (arrays (m, n_t)).
@@ -27,10 +29,9 @@ BIT_CHANNELS = {
     'landings_so_far': 'landings_so_far',
 }
 SHARED_CHANNELS = {'top_speed_rad_per_s': 'top_speed_rad_per_s', 'hook_load_n': 'hook_load_n'}
+"""Channels shared by the members: name -> Observation attribute (the state's, by the same
+name)."""
 STATION_FIELDS = ('axial', 'v', 'w')
-STATION_RECORDS = ('station_displacement_m', 'station_velocity_m_per_s',
-                   'station_acceleration_m_per_s2', 'station_spin_rate_rad_per_s')
-"""The Observation's (m, n_stations, 3) arrays a History records."""
 
 
 @dataclass
@@ -87,10 +88,13 @@ class SimulationResult:
 
 class History:
     """
-    Preallocated recorder of :class:`Observation` for ``n_records`` samples.
+    Preallocated recorder of observations for ``n_records`` samples.
 
     Recorded time first (a sample is one contiguous row of each buffer: a quarter of the cost
-    of a strided column), handed out time last by :meth:`result`.
+    of a strided column), handed out time last by :meth:`result`. The buffers are an
+    :class:`~drill_twin.dynamics.observed_bit.ObservedArrays` with a record per sample:
+    :meth:`record_simulator` has the simulator observe straight into them (one compiled
+    call), :meth:`record` copies an :class:`Observation` there.
     """
 
     def __init__(self, members: int, n_stations: int, n_records: int, time_step_s: float,
@@ -98,29 +102,46 @@ class History:
         self.count = 0
         self.time_step_s = time_step_s
         self.time_s = np.zeros(n_records)
-        kinds = {'bit_lifted_off': bool, 'bit_on_bottom': bool}
-        self._channels = {name: np.zeros((n_records, members), dtype=kinds.get(name, float))
-                          for name in BIT_CHANNELS}
-        self._channels['contact_nodes'] = np.zeros((n_records, members), dtype=int)
-        self._channels['max_contact_force_n'] = np.zeros((n_records, members))
+        self.observed = ObservedArrays(n_records, members, n_stations, fill=np.zeros)
+        floats, flags = self.observed.floats, self.observed.flags
+        self._channels = {
+            name: (flags[FLAG_RECORDS.index(attribute)] if attribute in FLAG_RECORDS
+                   else floats[FLOAT_RECORDS.index(attribute)])
+            for name, attribute in BIT_CHANNELS.items()}
+        self._channels['contact_nodes'] = self.observed.touching_nodes
+        self._channels['max_contact_force_n'] = floats[MAX_CONTACT_FORCE]
         self._shared = {name: np.zeros(n_records) for name in SHARED_CHANNELS}
         self._copied = [(self._channels[name], attribute)
                         for name, attribute in BIT_CHANNELS.items()]
-        self._copied += [(self._shared[name], attribute)
-                         for name, attribute in SHARED_CHANNELS.items()]
-        shape = (n_records, members, n_stations, 3)
+        self._shared_copied = [(self._shared[name], attribute)
+                               for name, attribute in SHARED_CHANNELS.items()]
         self.stations_m = np.asarray(stations_m, dtype=float)
-        self._stations = {name: np.zeros(shape) for name in STATION_RECORDS}
+        self._stations = dict(zip(STATION_RECORDS, self.observed.stations))
 
     def record(self, observation: Observation) -> None:
+        """Record an observation (from any source) as the next sample."""
         k = self.count
         self.time_s[k] = observation.time_s
-        for buffer, attribute in self._copied:
+        for buffer, attribute in self._copied + self._shared_copied:
             buffer[k] = getattr(observation, attribute)
         self._channels['contact_nodes'][k] = observation.in_contact.sum(axis=1)
         self._channels['max_contact_force_n'][k] = observation.contact_force_n.max(axis=1)
         for name, buffer in self._stations.items():
             buffer[k] = getattr(observation, name)
+        self.count += 1
+
+    def record_simulator(self, simulator) -> None:
+        """
+        Record the simulator's observation now as the next sample.
+
+        What :meth:`record` of its ``observe()`` records, written in one compiled call.
+        """
+        k = self.count
+        state = simulator.state
+        self.time_s[k] = state.time_s
+        simulator.observe_into(self.observed, k)
+        for buffer, attribute in self._shared_copied:
+            buffer[k] = getattr(state, attribute)
         self.count += 1
 
     def result(self, impact_count, lift_off_count, steps, iterations, wall_time_s,

@@ -38,13 +38,13 @@ def run_simulation(config: DrillStringConfig, duration_s: float, *, members: int
         steps = int(round(duration_s / dt))
         history = History(members, len(simulator.system.stations), steps // every + 1, dt,
                           [s.x_m for s in simulator.system.stations])
-        history.record(simulator.observe())
+        history.record_simulator(simulator)
         start = time.perf_counter()
         last_report = start
         for k in range(1, steps + 1):
             simulator.step()
             if k % every == 0:
-                history.record(simulator.observe())
+                history.record_simulator(simulator)
             if progress is not None and time.perf_counter() - last_report > 0.5:
                 last_report = time.perf_counter()
                 progress(k * dt, duration_s)
