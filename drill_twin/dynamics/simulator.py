@@ -774,10 +774,11 @@ class _Observer:
     A row r of the field-wise DOFs reads r . (Phi q) = (Phi^T r) . q, plus r . psi theta' for
     the rates and accelerations (the driven rotation moves the theta_x DOFs).
 
-    Columns of ``rows(q)``: hook (the top's axial DOF), the stations' (u, v, w) (``fields``,
+    Columns of ``q @ operator``: hook (the top's axial DOF), the stations' (u, v, w) (``fields``,
     station-major), their (theta_x, theta_y, theta_z) (``spins``), the torque balance's mass
     and damping rows, the bit's axial displacement and rotation. ``columns``: those last four
-    (``observed_bit.derive``'s); ``torsion``: the torsional field's DOFs.
+    (``observed_bit.derive``'s); ``torsion``: the torsional field's DOFs; ``no_hole``: the
+    hole :func:`observed_bit.observe_into` is handed when the state has none.
     """
 
     def __init__(self, system: ReducedSystem):
@@ -807,10 +808,6 @@ class _Observer:
         self.columns = np.array([self.mass, self.damping, self.bit_u, self.bit_angle],
                                 dtype=np.int64)
         self.no_hole = np.empty(0)
-
-    def rows(self, q: np.ndarray) -> np.ndarray:
-        """Return the observed rows of reduced vectors q (m, n): (m, k)."""
-        return q @ self.operator
 
 
 def _with_member(evaluation: ForceEvaluation, member: int,
