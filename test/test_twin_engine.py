@@ -87,6 +87,33 @@ def test_an_ensemble_in_a_worker_process_computes_the_same_numbers(config):
             worker.close()
 
 
+def test_the_worker_starts_while_the_mean_model_builds_and_ends_if_that_fails(config,
+                                                                              monkeypatch):
+    """The engine starts the worker first (its imports overlap the mean model's build)."""
+    from drill_twin.twin import engine as engine_module
+    from drill_twin.twin import ensemble
+
+    started = []
+
+    class Recorded(ensemble.EnsembleProcess):
+        def __init__(self):
+            super().__init__()
+            started.append(self)
+
+    def broken_simulator(*args, **kwargs):
+        assert started and started[0]._process.poll() is None    # the worker is starting
+        raise RuntimeError('no model today')
+
+    monkeypatch.setattr(ensemble, 'EnsembleProcess', Recorded)
+    monkeypatch.setattr(engine_module, 'Simulator', broken_simulator)
+    with pytest.raises(RuntimeError, match='no model today'):
+        TwinEngine(config, EnsembleSettings(members=2, dispersion=0.01, seed=1,
+                                            separate_process=True))
+    (worker,) = started
+    assert worker._process.poll() is not None                   # stopped, not orphaned
+    assert worker._connection.closed
+
+
 def test_a_worker_that_cannot_start_leaves_the_ensemble_in_this_process(config, monkeypatch):
     from drill_twin.twin import ensemble
 

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy.stats import t as student_t
+from scipy.special import stdtrit                # Student's t quantile: scipy.stats.t.ppf's
 
 BOUNDS_PERCENT = (2.5, 97.5)
 """Percentiles of the ensemble reported as its 95 % bounds (method 'percentile')."""
@@ -28,5 +28,5 @@ def interval(values, method: str = 'student_t') -> np.ndarray:
     if method != 'student_t':
         raise ValueError(f'bounds method must be one of {METHODS}, got {method!r}')
     n = values.shape[0]
-    half = student_t.ppf(0.975, n - 1) * values.std(axis=0, ddof=1) * np.sqrt(1.0 + 1.0 / n)
+    half = stdtrit(n - 1, 0.975) * values.std(axis=0, ddof=1) * np.sqrt(1.0 + 1.0 / n)
     return np.stack([mean, mean - half, mean + half])

@@ -37,7 +37,7 @@ from drill_twin.dynamics import rig
 from drill_twin.dynamics.simulator import Observation, Simulator
 from drill_twin.twin.ensemble import (BIT_FIELDS, EnsembleFailed, EnsembleResult,
                                       EnsembleSettings, LocalEnsemble, measurement_refused,
-                                      open_ensemble)
+                                      open_ensemble, start_worker)
 from drill_twin.twin.envelope import StringEnvelope
 from drill_twin.twin.stepping import (MAX_CONSECUTIVE_FAILURES, GuardedSimulator, TwinEvent,
                                       TwinStalled)
@@ -138,13 +138,20 @@ class TwinEngine:
         self.config = config
         self.ensemble = ensemble
         self.limits = limits
-        self.simulator = Simulator(config, members=1, system=system)
-        self.envelope = StringEnvelope.of(self.simulator.system)
-        self._mean = GuardedSimulator(self.simulator, first_member=0, name='the mean model')
-        initial = self._mean.guard.check(self.simulator)
-        if initial:
-            raise ConfigError('configuration', '', f'the model cannot be integrated: at t = 0 '
-                              f'{initial[0]}')
+        worker = start_worker(ensemble)         # its start-up runs while the mean model builds
+        try:
+            self.simulator = Simulator(config, members=1, system=system)
+            self.envelope = StringEnvelope.of(self.simulator.system)
+            self._mean = GuardedSimulator(self.simulator, first_member=0,
+                                          name='the mean model')
+            initial = self._mean.guard.check(self.simulator)
+            if initial:
+                raise ConfigError('configuration', '', f'the model cannot be integrated: at '
+                                  f't = 0 {initial[0]}')
+        except BaseException:
+            if worker is not None:
+                worker.close()
+            raise
         self.dt = self.simulator.dt
         self.step_index = 0
         self._window = _RingBuffer(5, 2)
@@ -162,7 +169,8 @@ class TwinEngine:
         self._block_velocity = None
         self._weight_on_bit_setpoint = None
         try:
-            self.ensemble_runner = open_ensemble(config, ensemble, self.simulator.system)
+            self.ensemble_runner = open_ensemble(config, ensemble, self.simulator.system,
+                                                 worker)
         except EnsembleFailed as error:
             self.ensemble_runner = LocalEnsemble(config, ensemble, self.simulator.system)
             self._events.append(TwinEvent(

@@ -283,9 +283,13 @@ class EnsembleProcess:
     of this process, its main module or its ROS context is inherited) talking over a socket
     pair; it ignores SIGINT (a Ctrl-C reaches the whole process group; the parent decides
     when to stop) and ends when told, or when the parent's end of the socket closes.
+
+    Made in two parts, so that the worker's start-up (its imports, about 1.3 s here) runs
+    while the caller builds its own model: the constructor starts the process,
+    :meth:`begin` hands it the string and waits for its first result.
     """
 
-    def __init__(self, config: DrillStringConfig, settings: EnsembleSettings, system):
+    def __init__(self):
         ours, theirs = socket.socketpair()
         environment = dict(os.environ, **SINGLE_THREADED_BLAS)
         # The worker must import this very drill_twin, even when it was put on sys.path by
@@ -302,6 +306,11 @@ class EnsembleProcess:
             theirs.close()
         self._connection = multiprocessing.connection.Connection(ours.detach())
         self._pending = False
+        self.latest = None
+
+    def begin(self, config: DrillStringConfig, settings: EnsembleSettings,
+              system) -> EnsembleProcess:
+        """Hand the worker its ensemble and wait for the first result; return self."""
         try:
             try:
                 self._connection.send((config, settings, system))
@@ -311,6 +320,7 @@ class EnsembleProcess:
         except EnsembleFailed:
             self.close()
             raise
+        return self
 
     def start(self, steps: int, top_speeds_rad_per_s, hook_load_n: float, block=None,
               samples: tuple[Sample, ...] = ()) -> None:
@@ -387,9 +397,23 @@ def serve(connection) -> None:
             pass
 
 
-def open_ensemble(config: DrillStringConfig, settings: EnsembleSettings, system):
-    """Start the ensemble of ``settings`` (None without members), here or in a worker process."""
+def start_worker(settings: EnsembleSettings) -> EnsembleProcess | None:
+    """Start the worker process of ``settings``'s ensemble, if it has one (else None)."""
+    if settings.members == 0 or not settings.separate_process:
+        return None
+    return EnsembleProcess()
+
+
+def open_ensemble(config: DrillStringConfig, settings: EnsembleSettings, system,
+                  worker: EnsembleProcess | None = None):
+    """
+    Start the ensemble of ``settings`` (None without members), here or in a worker process.
+
+    ``worker``: the process :func:`start_worker` started for it (one is started here if
+    None and the ensemble runs in a process of its own).
+    """
     if settings.members == 0:
         return None
-    kind = EnsembleProcess if settings.separate_process else LocalEnsemble
-    return kind(config, settings, system)
+    if not settings.separate_process:
+        return LocalEnsemble(config, settings, system)
+    return (worker or EnsembleProcess()).begin(config, settings, system)
