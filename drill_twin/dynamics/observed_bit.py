@@ -122,9 +122,7 @@ def observe_into(k, q, rate, acceleration, detailed, operator, hook, fields_star
     q_rows = np.dot(q, operator)
     rate_rows = np.dot(rate[:detailed], operator)
     acceleration_rows = np.dot(acceleration[:detailed], operator)
-    bit = np.empty(members) if has_hole else q_rows[:, columns[2]].copy()
-    if has_hole:
-        bit[:] = hole
+    bit = hole if has_hole else q_rows[:, columns[2]].copy()
     derived = np.empty((6, members))
     on_bottom = np.empty(members, dtype=np.bool_)
     derive(q_rows, rate_rows, acceleration_rows, driven, top_speed, top_acceleration, full,

@@ -111,10 +111,10 @@ class History:
         self._channels['contact_nodes'] = self.observed.touching_nodes
         self._channels['max_contact_force_n'] = floats[MAX_CONTACT_FORCE]
         self._shared = {name: np.zeros(n_records) for name in SHARED_CHANNELS}
-        self._copied = [(self._channels[name], attribute)
-                        for name, attribute in BIT_CHANNELS.items()]
         self._shared_copied = [(self._shared[name], attribute)
                                for name, attribute in SHARED_CHANNELS.items()]
+        self._copied = [(self._channels[name], attribute)
+                        for name, attribute in BIT_CHANNELS.items()] + self._shared_copied
         self.stations_m = np.asarray(stations_m, dtype=float)
         self._stations = dict(zip(STATION_RECORDS, self.observed.stations))
 
@@ -122,7 +122,7 @@ class History:
         """Record an observation (from any source) as the next sample."""
         k = self.count
         self.time_s[k] = observation.time_s
-        for buffer, attribute in self._copied + self._shared_copied:
+        for buffer, attribute in self._copied:
             buffer[k] = getattr(observation, attribute)
         self._channels['contact_nodes'][k] = observation.in_contact.sum(axis=1)
         self._channels['max_contact_force_n'][k] = observation.contact_force_n.max(axis=1)
