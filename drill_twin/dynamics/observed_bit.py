@@ -9,7 +9,7 @@ reductions, the events so far and the stations, written at record k of the array
 has it write straight into its buffers. Before (2026-12-03), an observation was about thirty
 small numpy operations and a recorded one thirty more, each costing more than its arithmetic
 after a step has evicted numpy's working set from the cache: 57 + 29 us per record of the
-mean model in the time loop, measured, against 8 us for the whole step's bookkeeping.
+mean model in the time loop, measured (its compiled step takes about 85 us); now 19 us.
 """
 from __future__ import annotations
 
