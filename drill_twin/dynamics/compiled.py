@@ -9,10 +9,14 @@ starts load it in milliseconds.
 Where. numba checks a cached kernel against its own source file only, not against the
 kernels it calls from other modules. The cache therefore lives in a folder named after a
 hash of every kernel-defining module of this package (``kernels-<hash>``): editing any of
-them starts a fresh cache. The folder is made under the first writable of: ``NUMBA_CACHE_DIR``,
-``__pycache__`` beside this file, the user's cache folder (``$XDG_CACHE_HOME`` or
-``~/.cache``)/drill_twin, the system's temporary folder; with none writable the kernels are
-compiled at every start (with a warning).
+them starts a fresh cache. Inside it a kernel is found by its module's name, its line and its
+source file's content, not by the file's path (numba's own locators add a folder per source
+path): a second checkout or a new virtual environment with the same kernels loads them instead
+of compiling them again. The folder is made under the first writable of: ``NUMBA_CACHE_DIR``,
+the user's cache folder (``$XDG_CACHE_HOME`` or ``~/.cache``)/drill_twin, ``__pycache__``
+beside this file, the system's temporary folder; with none writable the kernels are compiled
+at every start (with a warning). Of the folders of earlier sources, the KEPT_CACHES most
+recently used are kept (about 7 MB each), older ones removed.
 
 Kernels run on one thread (the batch is the vector axis) and use numpy's error model:
 a division by zero gives inf or nan as in numpy, never an exception, so a diverging member
@@ -31,12 +35,15 @@ from __future__ import annotations
 
 import hashlib
 import os
+import shutil
 import tempfile
+import time
 import warnings
 from pathlib import Path
 
 import llvmlite.binding
 import numba
+from numba.core import caching
 
 VECTOR_MEMORY_CHECKS = 256
 """LLVM's limit on the run-time alias checks of a vectorised loop (module docstring)."""
@@ -49,6 +56,8 @@ VECTOR_BATCH = 4
 """From this batch size on, kernels loop over the members innermost (the vector axis); below
 it, member by member (a loop over one member costs more in set-up than it computes)."""
 _MARKERS = (b'@kernel', b'@inline')
+KEPT_CACHES = 6
+"""Folders of earlier kernel sources kept beside the current one (module docstring)."""
 
 
 def _source_hash() -> str:
@@ -74,13 +83,57 @@ def cache_directory() -> Path | None:
     """Return the kernels' cache folder (module docstring), None when nothing is writable."""
     user_cache = Path(os.environ.get('XDG_CACHE_HOME') or Path.home() / '.cache')
     bases = [Path(os.environ['NUMBA_CACHE_DIR'])] if os.environ.get('NUMBA_CACHE_DIR') else []
-    bases += [Path(__file__).parent / '__pycache__', user_cache / 'drill_twin',
+    bases += [user_cache / 'drill_twin', Path(__file__).parent / '__pycache__',
               Path(tempfile.gettempdir()) / f'drill_twin-{os.getuid()}']
     name = f'kernels-{_source_hash()}'
     for base in bases:
         if _writable(base / name):
+            os.utime(base / name)                       # in use: the last to be pruned
+            _prune(base, keep=base / name)
             return base / name
     return None
+
+
+def _prune(base: Path, keep: Path) -> None:
+    """Remove the oldest ``kernels-*`` folders of ``base`` beyond KEPT_CACHES (not ``keep``)."""
+    try:
+        folders = sorted((path for path in base.glob('kernels-*')
+                          if path.is_dir() and path != keep),
+                         key=lambda path: path.stat().st_mtime, reverse=True)
+    except OSError:
+        return
+    day = 86400.0
+    for path in folders[KEPT_CACHES:]:
+        try:
+            if time.time() - path.stat().st_mtime > day:   # not one another process just made
+                shutil.rmtree(path, ignore_errors=True)
+        except OSError:
+            pass
+
+
+class _KernelLocator(caching._SourceFileBackedLocatorMixin, caching._CacheLocator):
+    """
+    numba's cache locator for this package's kernels: the folder of cache_directory().
+
+    A kernel's files are named by its module, function and line (numba's names) and checked
+    against a hash of its source file's content (numba's stamp), with no folder per source
+    path: the same kernels in another checkout find them.
+    """
+
+    def __init__(self, py_func, py_file):
+        self._py_file = py_file
+        self._lineno = py_func.__code__.co_firstlineno
+
+    def get_cache_path(self):
+        return str(_CACHE_DIRECTORY)
+
+
+class _KernelCacheImpl(caching.CompileResultCacheImpl):
+    _locator_classes = [_KernelLocator]
+
+
+class _KernelCache(caching.FunctionCache):
+    _impl_class = _KernelCacheImpl
 
 
 _CACHE_DIRECTORY = cache_directory()
@@ -88,17 +141,14 @@ _CACHE_DIRECTORY = cache_directory()
 
 def kernel(function):
     """Compile ``function`` with numba.njit (nopython mode) and the on-disk cache."""
+    dispatcher = numba.njit(cache=False, **OPTIONS)(function)
     if _CACHE_DIRECTORY is None:
         warnings.warn(f'drill_twin: no writable folder for the compiled kernels; '
                       f'{function.__name__} is compiled at every start (set NUMBA_CACHE_DIR)',
                       stacklevel=2)
-        return numba.njit(cache=False, **OPTIONS)(function)
-    saved = numba.config.CACHE_DIR
-    numba.config.CACHE_DIR = str(_CACHE_DIRECTORY)      # read when the cache is set up
-    try:
-        return numba.njit(cache=True, **OPTIONS)(function)
-    finally:
-        numba.config.CACHE_DIR = saved
+    else:
+        dispatcher._cache = _KernelCache(function)      # what njit(cache=True) sets, ours
+    return dispatcher
 
 
 def inline(function):
