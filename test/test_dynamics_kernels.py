@@ -441,3 +441,36 @@ def test_a_large_batch_verifies_in_groups_spread_over_the_clock(default_config):
                       if (n + VERIFY_SPACING * g) % VERIFY_EVERY == 0)
     assert expected == [19, 22, 25, 44, 47, 50]
     assert [n for n in verified if n > 2] == expected
+
+
+def test_a_failed_members_flags_are_put_back_without_touching_the_steps_result(default_config):
+    """
+    The contact and lift-off flags a step keeps for the next one's acceptance are its result's.
+
+    A member whose step fails gets its flags from before the step back; the step's result
+    (held by its caller) keeps the flags it was computed with, and the others keep the new ones.
+    """
+    from drill_twin.dynamics.simulator import Simulator
+    batch = Simulator(default_config, members=2)
+    bending = batch.system.blocks['bending_y']
+    q, rate = batch.state.q.copy(), batch.state.q_rate.copy()
+    q[0, bending.columns] *= 40.0                  # member 0 pressed on the wall
+    batch.reset(q, rate)
+    batch.step()
+    integrator = batch.integrator
+    before = tuple(flags.copy() for flags in integrator._active)
+    assert before[0][0].any() and not before[0][1].any()
+    batch.state.q[1, bending.columns] *= 40.0      # member 1 goes to the wall ...
+    batch.state.q[1, 0] = np.nan                   # ... and diverges there
+    state, result = integrator.step(batch.state, batch.state.top_speed_rad_per_s,
+                                    batch.hook_load_command_n)
+    assert result.finite.tolist() == [True, False]
+    computed = result.forces.contact.in_contact, result.forces.lifted
+    contact, lifted = integrator._active
+    np.testing.assert_array_equal(contact[1], before[0][1])
+    np.testing.assert_array_equal(lifted[1], before[1][1])
+    np.testing.assert_array_equal(contact[0], computed[0][0])
+    np.testing.assert_array_equal(lifted[0], computed[1][0])
+    # The result keeps what the step computed: member 1 on the wall (not put back in place).
+    assert result.forces.contact.in_contact[1].any()
+    assert not np.shares_memory(contact, result.forces.contact.in_contact)

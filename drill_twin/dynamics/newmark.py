@@ -72,6 +72,7 @@ from drill_twin.dynamics.contact import ContactForces
 from drill_twin.dynamics.forces import ForceEvaluation, Kinematics, NonlinearForces
 from drill_twin.dynamics.newmark_kernel import (BETA, GAMMA, VELOCITY_SCALE,  # noqa
                                                 VERIFY_EVERY)
+from drill_twin.dynamics.records import maker
 from drill_twin.dynamics.step_operands import StepOperands, make_step_operands
 
 ON_BOTTOM_TOLERANCE_M = compiled.ON_BOTTOM_TOLERANCE_M
@@ -144,6 +145,11 @@ class StepResult:
     forces: ForceEvaluation
     retries: np.ndarray | None = None
     on_bottom: np.ndarray | None = None
+
+
+make_step_result = maker(StepResult)
+"""StepResult(...) with every field given, at the time loop's rate (:mod:`records`)."""
+_make_evaluation, _make_contact = maker(ForceEvaluation), maker(ContactForces)
 
 
 @dataclass
@@ -553,7 +559,7 @@ class NewmarkIntegrator:
             self._operands(work), final.arrays,
             (q, q_rate, q_acceleration, hole, finite, converged, on_bottom))
         evaluation = final.evaluation(touching)
-        self._active = (final.contact.copy(), final.bit_lifted.copy())
+        self._active = (final.contact, final.bit_lifted)    # shared, never written in place
         error = work.error.copy()
         bit_ok = work.bit_ok
         success = count == members
@@ -581,8 +587,8 @@ class NewmarkIntegrator:
         counters.failed_steps += int(not success)
         new_state = BatchState(time, q, q_rate, q_acceleration, top_angle, top_speed_rad_per_s,
                                top_acceleration, hook_load_n, hole)
-        return new_state, StepResult(success, converged, finite, iterations, error, message,
-                                     evaluation, on_bottom=on_bottom)
+        return new_state, make_step_result(success, converged, finite, iterations, error,
+                                           message, evaluation, None, on_bottom)
 
     def _operands(self, work: compiled.StepWork) -> StepOperands:
         """Return the step's operands object, made again when one of its tuples changed."""
@@ -623,8 +629,10 @@ class NewmarkIntegrator:
             self._rate, self._active = bookkeeping
             return
         self._rate[members] = rate[members]
-        for now, before in zip(self._active, active):
-            now[members] = before[members]
+        # New arrays: the flags are the last evaluation's own, which callers hold.
+        contact, lifted = self._active
+        self._active = (np.where(members[:, None], active[0], contact),
+                        np.where(members, active[1], lifted))
 
     def discard_last_step(self) -> None:
         """Forget the last step entirely (its caller did not keep it)."""
@@ -711,9 +719,9 @@ class _FinalEvaluation:
 
     def evaluation(self, touching: bool) -> ForceEvaluation:
         """Return the evaluation; ``touching``: whether any node touches the wall."""
-        return ForceEvaluation(
+        return _make_evaluation(
             full=self.full.T, modal=self.modal.T, weight_on_bit_n=self.bit_force,
             torque_on_bit_nm=self.bit_torque, rop_m_per_s=self.bit_rop,
             bit_speed_rad_per_s=self.bit_omega, lifted=self.bit_lifted,
-            bit_jacobian=self.bit_jacobian, contact=ContactForces(self.radial, self.contact),
+            bit_jacobian=self.bit_jacobian, contact=_make_contact(self.radial, self.contact),
             contact_tangent=self.tangent if touching else None)

@@ -38,7 +38,7 @@ from drill_twin.dynamics.drawworks import HookBrake
 from drill_twin.dynamics.rig import drawworks_of
 from drill_twin.dynamics.forces import ForceEvaluation, NonlinearForces
 from drill_twin.dynamics.newmark import (ON_BOTTOM_TOLERANCE_M, BatchState, NewmarkIntegrator,
-                                         StepResult)
+                                         StepResult, make_step_result)
 from drill_twin.dynamics.reduced_system import ReducedSystem, build_reduced_system
 from drill_twin.modal.reduced_basis import modal_analysis
 
@@ -418,8 +418,9 @@ class Simulator:
         if np.count_nonzero(before) < before.size:    # (a bit can land only if one was off)
             self.landing_count += on_bottom & ~before
         self._on_bottom = on_bottom
-        return StepResult(result.success, result.converged, result.finite, result.iterations,
-                          result.error, result.message, result.forces, retries, on_bottom)
+        return make_step_result(result.success, result.converged, result.finite,
+                                result.iterations, result.error, result.message, result.forces,
+                                retries, on_bottom)
 
     @property
     def impact_count(self) -> np.ndarray:
