@@ -30,7 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from drill_twin.dynamics.compiled import VECTOR_BATCH, inline, kernel
-from drill_twin.dynamics.padded_rows import padded_rows
+from drill_twin.dynamics.padded_rows import padded_rows, unsigned_index
 from drill_twin.fem import strain_energy as se
 
 READINGS = ('invariant', 'printed_elastic', 'printed_absolute')
@@ -93,11 +93,9 @@ class StrainOperators:
         twist = sp.csr_matrix(twist)
         twist.sort_indices()
         reading = system.model.config.lateral_readings.strain_kinematics
-        index = _unsigned
         return cls(
-            strain_column=index(strain_column), strain_value=strain_value,
-            strain_length=strain_length, tangent_row=index(tangent_row),
-            tangent_column=index(tangent_column), tangent_value=tangent_value,
+            strain_column=strain_column, strain_value=strain_value, strain_length=strain_length,
+            tangent_row=tangent_row, tangent_column=tangent_column, tangent_value=tangent_value,
             tangent_length=tangent_length,
             prestress_strain=np.ascontiguousarray(system.prestress_strain, dtype=float),
             prestress_stress=np.ascontiguousarray(system.prestress_stress, dtype=float),
@@ -106,7 +104,7 @@ class StrainOperators:
             weight_m=np.ascontiguousarray(system.gauss_weight_m, dtype=float),
             reading=READINGS.index(reading),
             twist_pointer=twist.indptr.astype(np.int64),
-            twist_column=index(twist.indices),
+            twist_column=unsigned_index(twist.indices),
             twist_value=twist.data.astype(float), top_angle=np.zeros(1))
 
     def set_top_angle(self, angle_rad: float) -> None:
@@ -120,16 +118,6 @@ class StrainOperators:
                 self.prestress_strain, self.prestress_stress, self.section, self.weight_m,
                 self.reading, self.twist_pointer, self.twist_column, self.twist_value,
                 self.top_angle)
-
-
-def _unsigned(index: np.ndarray) -> np.ndarray:
-    """
-    Return ``index`` as unsigned integers (np.uintp), the kernels' gather and scatter indices.
-
-    numba checks every signed index for a negative value (counted from the end); an unsigned
-    one needs no check: the finite strain's gathers and scatters ran 15-30 % faster, measured.
-    """
-    return np.ascontiguousarray(index, dtype=np.uintp)
 
 
 @inline

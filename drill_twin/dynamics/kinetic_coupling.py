@@ -63,8 +63,9 @@ class CouplingOperators:
 
     def arguments(self) -> tuple:
         """Return the kernel's operator arguments, in its order."""
-        return (*self.theta_x, *self.theta_y, *self.theta_z, self.torsion_row,
-                self.bending_y_row, self.bending_z_row, self.scale)
+        rows = (np.uintp(self.torsion_row), np.uintp(self.bending_y_row),
+                np.uintp(self.bending_z_row))         # unsigned like the columns they offset
+        return (*self.theta_x, *self.theta_y, *self.theta_z, *rows, self.scale)
 
 
 def _sign(system) -> float:

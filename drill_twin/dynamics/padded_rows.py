@@ -9,15 +9,24 @@ Gauss points and one member), and the padding adds exact zeros: sums over a padd
 those over its non-zeros, bit for bit, for finite operands. Kernels whose inner loop runs
 over a batch's members stop at each row's own length instead (the padding would cost them a
 seventh more work).
+
+Column indices are unsigned (np.uintp): numba checks every signed index for a negative value
+(counted from the end), an unsigned one needs no check (the finite strain's gathers and
+scatters ran 15-30 % faster, the kernel 26.5 against 29.2 us for one member, measured).
 """
 from __future__ import annotations
 
 import numpy as np
 
 
+def unsigned_index(index) -> np.ndarray:
+    """Return ``index`` as unsigned integers (np.uintp), the kernels' index layout."""
+    return np.ascontiguousarray(index, dtype=np.uintp)
+
+
 def padded_rows(pointer: np.ndarray, columns, values: np.ndarray):
     """
-    Return compressed rows padded to the longest: columns (rows, R) int64, values (rows, R).
+    Return compressed rows padded to the longest: columns (rows, R) uintp, values (rows, R).
 
     And lengths (rows,) int64, each row's count of non-zeros: the batch kernels, whose inner
     loop runs over the members, skip the padding with them. pointer (rows + 1,), columns
@@ -29,7 +38,7 @@ def padded_rows(pointer: np.ndarray, columns, values: np.ndarray):
     pointer = np.asarray(pointer)
     lengths = np.diff(pointer)
     rows, width = lengths.size, max(int(lengths.max(initial=0)), 1)
-    padded = [np.zeros((rows, width), dtype=np.int64) for _ in columns]
+    padded = [np.zeros((rows, width), dtype=np.uintp) for _ in columns]
     padded_values = np.zeros((rows, width))
     for r in range(rows):
         start, stop = pointer[r], pointer[r + 1]
