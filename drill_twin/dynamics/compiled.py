@@ -88,7 +88,10 @@ def cache_directory() -> Path | None:
     name = f'kernels-{_source_hash()}'
     for base in bases:
         if _writable(base / name):
-            os.utime(base / name)                       # in use: the last to be pruned
+            try:
+                os.utime(base / name)                   # in use: the last to be pruned
+            except OSError:
+                pass
             _prune(base, keep=base / name)
             return base / name
     return None
