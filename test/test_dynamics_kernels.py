@@ -443,6 +443,29 @@ def test_a_large_batch_verifies_in_groups_spread_over_the_clock(default_config):
     assert [n for n in verified if n > 2] == expected
 
 
+def test_groups_beyond_the_cycles_slots_verify_with_the_first_ones(default_config):
+    """
+    A batch of more than VERIFY_SLOTS groups verifies on the cycle's VERIFY_SLOTS steps only.
+
+    Group g takes slot g mod VERIFY_SLOTS: 73 members are ten groups, the ninth and tenth
+    verifying with the first and second, so second iterations fall on 8 steps of 25 (not on
+    26 and 51, or 23 and 48, where groups 8 and 9 had slots of their own: a 256-member batch
+    then ran two iterations on every step). A member's schedule depends on its index only.
+    """
+    from drill_twin.dynamics.newmark import VERIFY_EVERY
+    from drill_twin.dynamics.newmark_kernel import VERIFY_GROUP, VERIFY_SLOTS, VERIFY_SPACING
+    from drill_twin.dynamics.simulator import Simulator
+    members = (VERIFY_SLOTS + 1) * VERIFY_GROUP + 1
+    germs = np.eye(2) + 0.01 * np.random.default_rng(5).standard_normal((members, 2, 2))
+    batch = Simulator(default_config, members=members, germs=germs)
+    verified = [step for step in range(1, 2 * VERIFY_EVERY + 2)
+                if batch.step().iterations > 1]
+    expected = sorted(n for n in range(3, 2 * VERIFY_EVERY + 2) for slot in range(VERIFY_SLOTS)
+                      if (n + VERIFY_SPACING * slot) % VERIFY_EVERY == 0)
+    assert expected == [4, 7, 10, 13, 16, 19, 22, 25, 29, 32, 35, 38, 41, 44, 47, 50]
+    assert [n for n in verified if n > 2] == expected
+
+
 def test_a_failed_members_flags_are_put_back_without_touching_the_steps_result(default_config):
     """
     The contact and lift-off flags a step keeps for the next one's acceptance are its result's.

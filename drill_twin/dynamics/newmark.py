@@ -35,7 +35,8 @@ scipy's implicit solvers do, each member keeps the contraction rate rho = |incre
 rho / (1 - rho) |increment_1| (the estimated remaining error) is below the tolerance. It
 verifies with a second iteration whenever its set of nodes touching the wall or its bit's
 lift-off state changed, and once every VERIFY_EVERY steps of the model's clock to refresh rho,
-in groups of VERIFY_GROUP members VERIFY_SPACING steps apart. The schedule is the clock's, not
+in groups of VERIFY_GROUP members VERIFY_SPACING steps apart (at most VERIFY_SLOTS steps of a
+cycle: further groups share them). The schedule is the clock's, not
 counted from each member's last verification, so two runs of the same members take the same
 decisions whenever they were started; and since the later iterations run on the members
 still iterating only, a step's extra cost is that of a group (a 64-member batch verifying
