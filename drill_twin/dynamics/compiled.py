@@ -150,7 +150,10 @@ def kernel(function):
                       f'{function.__name__} is compiled at every start (set NUMBA_CACHE_DIR)',
                       stacklevel=2)
     else:
-        dispatcher._cache = _KernelCache(function)      # what njit(cache=True) sets, ours
+        try:
+            dispatcher._cache = _KernelCache(function)  # what njit(cache=True) sets, ours
+        except RuntimeError:                            # no source file to stamp (a zip...)
+            dispatcher.enable_caching()                 # numba's own locators
     return dispatcher
 
 

@@ -12,7 +12,7 @@ seventh more work).
 
 Column indices are unsigned (np.uintp): numba checks every signed index for a negative value
 (counted from the end), an unsigned one needs no check (the finite strain's gathers and
-scatters ran 15-30 % faster, the kernel 26.5 against 29.2 us for one member, measured).
+scatters ran 12-30 % faster, the kernel 26.5 against 29.2 us for one member, measured).
 """
 from __future__ import annotations
 
