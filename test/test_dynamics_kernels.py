@@ -497,3 +497,24 @@ def test_a_failed_members_flags_are_put_back_without_touching_the_steps_result(d
     # The result keeps what the step computed: member 1 on the wall (not put back in place).
     assert result.forces.contact.in_contact[1].any()
     assert not np.shares_memory(contact, result.forces.contact.in_contact)
+
+
+def test_a_steps_wall_tangents_are_its_own(default_config):
+    """
+    The contact tangents a step hands out stay as they were after the next step.
+
+    The kernel writes them into the batch's work array; the evaluation gets a copy when a node
+    touches (and None when none does).
+    """
+    from drill_twin.dynamics.simulator import Simulator
+    batch = Simulator(default_config, members=2)
+    bending = batch.system.blocks['bending_y']
+    q, rate = batch.state.q.copy(), batch.state.q_rate.copy()
+    q[0, bending.columns] *= 40.0                  # member 0 pressed on the wall
+    batch.reset(q, rate)
+    first = batch.step().forces.contact_tangent
+    kept = first.copy()
+    assert np.any(kept[0] != 0.0) and not np.any(kept[1])
+    second = batch.step().forces.contact_tangent
+    assert second is not first and np.any(second != kept)
+    np.testing.assert_array_equal(first, kept)

@@ -538,7 +538,7 @@ class NewmarkIntegrator:
         previous_contact, previous_lifted = (active if have_active
                                              else (work.no_contact, work.no_lift))
         system = self.system
-        final = _FinalEvaluation(system.n_dofs, system.size, system.n_nodes, members)
+        final = _FinalEvaluation(system.n_dofs, system.size, system.n_nodes, members, work)
         q = np.empty((members, system.size))
         q_rate, q_acceleration = np.empty_like(q), np.empty_like(q)
         hole = np.empty(members)
@@ -616,9 +616,14 @@ class NewmarkIntegrator:
                            forces.stress, forces.coupling, forces.force_t, forces.radial,
                            forces.in_contact, forces.tangent,
                            forces.bending_z_acceleration_t)
+            nodes = self.system.n_nodes
+            # The final evaluation's arrays that callers do not keep as they are: the tangents
+            # (copied out when a node touches) and the bit solve's flags.
+            work.final_tangent = np.empty((members, nodes, 2, 2))
+            work.final_solved = np.empty(members, dtype=bool)
             work.make_compact(work.arrays + _FinalEvaluation(
-                self.system.n_dofs, self.system.size, self.system.n_nodes, members).arrays)
-            work.no_contact = np.zeros((members, self.system.n_nodes), dtype=bool)
+                self.system.n_dofs, self.system.size, nodes, members, work).arrays)
+            work.no_contact = np.zeros((members, nodes), dtype=bool)
             work.no_lift = np.zeros(members, dtype=bool)
             self._work = work
         return work
@@ -698,22 +703,26 @@ class _FinalEvaluation:
     """
     Return the arrays of a step's final evaluation (new for every step: the caller keeps them).
 
+    But for the tangents and the bit solve's flags, which are the batch's work arrays
+    (``work``: the step's StepWork): the evaluation gets a copy of the tangents when a node
+    touches the wall (None otherwise), and no flags.
+
     In the order :func:`newmark_kernel.update` takes them: full (n_dofs, m), modal (n, m),
     radial, contact (m, n_nodes), tangent (m, n_nodes, 2, 2); the bit's rop, omega, force,
     torque, lifted (m,), jacobian (m, 2, 2), solved (m,).
     """
 
-    def __init__(self, n_dofs: int, n: int, nodes: int, members: int):
+    def __init__(self, n_dofs: int, n: int, nodes: int, members: int, work):
         self.full = np.empty((n_dofs, members))
         self.modal = np.empty((n, members))
         self.radial = np.empty((members, nodes))
         self.contact = np.empty((members, nodes), dtype=bool)
-        self.tangent = np.empty((members, nodes, 2, 2))
+        self.tangent = work.final_tangent              # the batch's: copied out if touching
         self.bit_rop, self.bit_omega = np.empty(members), np.empty(members)
         self.bit_force, self.bit_torque = np.empty(members), np.empty(members)
         self.bit_lifted = np.empty(members, dtype=bool)
         self.bit_jacobian = np.empty((members, 2, 2))
-        self.bit_solved = np.empty(members, dtype=bool)
+        self.bit_solved = work.final_solved            # the step's own (not in the evaluation)
         self.arrays = (self.full, self.modal, self.radial, self.contact, self.tangent,
                        self.bit_rop, self.bit_omega, self.bit_force, self.bit_torque,
                        self.bit_lifted, self.bit_jacobian, self.bit_solved)
@@ -725,4 +734,4 @@ class _FinalEvaluation:
             torque_on_bit_nm=self.bit_torque, rop_m_per_s=self.bit_rop,
             bit_speed_rad_per_s=self.bit_omega, lifted=self.bit_lifted,
             bit_jacobian=self.bit_jacobian, contact=_make_contact(self.radial, self.contact),
-            contact_tangent=self.tangent if touching else None)
+            contact_tangent=self.tangent.copy() if touching else None)

@@ -164,6 +164,9 @@ class Simulator:
                                             integration.tolerance, integration.max_iterations,
                                             germs, law_scales)
         self._substep_integrators: dict[int, NewmarkIntegrator] = {}
+        self._refines_contact = config.integration.contact_substeps > 1
+        self._no_retries = np.zeros(self.members, dtype=int)
+        self._no_retries.flags.writeable = False       # a step without retries: shared zeros
         self._contact_integrator: NewmarkIntegrator | None = None
         self.law = BitRockLaw.from_config(config.bit_rock)
         self.dt = integration.time_step_s
@@ -391,7 +394,7 @@ class Simulator:
         speed = self.top_drive.advance(self.top_speed_command_rad_per_s, self.dt)
         self._step_hook_load_n = self._applied_hook_load()
         new_state, result = self.integrator.step(self.state, speed, self._step_hook_load_n)
-        retries = np.zeros(self.members, dtype=int)
+        retries = self._no_retries
         if not result.success:
             # A diverging member's NaN and inf are caught below (SimulationDiverged), not
             # warned of.
@@ -402,10 +405,11 @@ class Simulator:
             self.top_drive.speed_rad_per_s = start_speed
             raise SimulationDiverged(result.message, new_state.time_s,
                                      np.flatnonzero(~result.converged))
-        if self.config.integration.contact_substeps > 1:
+        previous = self.last
+        if self._refines_contact and (previous.contact_tangent is not None
+                                      or result.forces.contact_tangent is not None):
             new_state, result = self._refine_contact_changes(new_state, result, start_speed,
                                                              speed)
-        previous = self.last
         self.state, self.last = new_state, result.forces
         if self.last.contact_tangent is not None or previous.contact_tangent is not None:
             self.contact_onset_count += np.sum(self.last.contact.in_contact
