@@ -408,6 +408,7 @@ class Simulator:
         previous = self.last
         if self._refines_contact and (previous.contact_tangent is not None
                                       or result.forces.contact_tangent is not None):
+            # (a node touched before or after the step)
             new_state, result = self._refine_contact_changes(new_state, result, start_speed,
                                                              speed)
         self.state, self.last = new_state, result.forces
@@ -497,9 +498,8 @@ class Simulator:
         the wall's net work to zero (docs/LATERAL.md, section 4). The members concerned are
         integrated together, as one batch on the finer step; if that fails, member by member
         on the retry's sub-steps, and a member that fails even so keeps its full step.
+        Called when a node touched the wall before or after the step.
         """
-        if self.last.contact_tangent is None and result.forces.contact_tangent is None:
-            return new_state, result                  # no node touched before or after
         before = self.last.contact.in_contact
         after = result.forces.contact.in_contact
         changed = np.flatnonzero(np.any(before != after, axis=1))
