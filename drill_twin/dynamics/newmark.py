@@ -74,6 +74,7 @@ from drill_twin.dynamics.forces import ForceEvaluation, Kinematics, NonlinearFor
 from drill_twin.dynamics.newmark_kernel import (BETA, GAMMA, VELOCITY_SCALE,  # noqa
                                                 VERIFY_EVERY)
 from drill_twin.dynamics.records import maker
+from drill_twin.dynamics.recycled import RecycledArrays
 from drill_twin.dynamics.step_operands import StepOperands, make_step_operands
 
 ON_BOTTOM_TOLERANCE_M = compiled.ON_BOTTOM_TOLERANCE_M
@@ -532,19 +533,19 @@ class NewmarkIntegrator:
         have_rate = rate is not None and rate.shape == (members,)
         if not have_rate:
             self._rate = np.full(members, np.nan)
-        bookkeeping = (None if rate is None else rate.copy(), active)
+        (q, q_rate, q_acceleration, hole, finite, converged, on_bottom, error,
+         full, modal, radial, rop, omega, force, torque, jacobian) = work.results.take()
+        saved_rate, contact, lifted = work.kept_flags.take()
+        final = (full, modal, radial, contact, work.final_tangent, rop, omega, force, torque,
+                 lifted, jacobian, work.final_solved)
+        if have_rate:
+            saved_rate[:] = rate
+        bookkeeping = (saved_rate if have_rate else None if rate is None else rate.copy(),
+                       active)
         clock = round((state.time_s + dt) / dt)         # the step's number on the model clock
         have_active = active is not None and active[1].shape == (members,)
         previous_contact, previous_lifted = (active if have_active
                                              else (work.no_contact, work.no_lift))
-        system = self.system
-        final = _FinalEvaluation(system.n_dofs, system.size, system.n_nodes, members, work)
-        q = np.empty((members, system.size))
-        q_rate, q_acceleration = np.empty_like(q), np.empty_like(q)
-        hole = np.empty(members)
-        finite = np.empty(members, dtype=bool)
-        converged = np.empty(members, dtype=bool)
-        on_bottom = np.empty(members, dtype=bool)
         self.forces.strain_operators.set_top_angle(top_angle)   # printed_absolute's
         if self.forces.imbalance is not None:          # the angle its force turns with
             self.forces.imbalance.set_top_angle(top_angle)
@@ -557,11 +558,11 @@ class NewmarkIntegrator:
             (float(top_speed_rad_per_s), float(top_acceleration), hooks,
              self.max_iterations),
             (have_rate, have_active, self._rate, clock, previous_contact, previous_lifted),
-            self._operands(work), final.arrays,
+            self._operands(work), final,
             (q, q_rate, q_acceleration, hole, finite, converged, on_bottom))
-        evaluation = final.evaluation(touching)
-        self._active = (final.contact, final.bit_lifted)    # shared, never written in place
-        error = work.error.copy()
+        evaluation = _final_evaluation(final, touching)
+        self._active = (contact, lifted)               # shared, never written in place
+        error[:] = work.error
         bit_ok = work.bit_ok
         success = count == members
         time = state.time_s + dt
@@ -621,8 +622,14 @@ class NewmarkIntegrator:
             # (copied out when a node touches) and the bit solve's flags.
             work.final_tangent = np.empty((members, nodes, 2, 2))
             work.final_solved = np.empty(members, dtype=bool)
-            work.make_compact(work.arrays + _FinalEvaluation(
-                self.system.n_dofs, self.system.size, nodes, members, work).arrays)
+            size, n_dofs = self.system.size, self.system.n_dofs
+            work.results = RecycledArrays(
+                lambda: _new_step_arrays(n_dofs, size, nodes, members))
+            work.kept_flags = RecycledArrays(lambda: _new_kept_flags(nodes, members))
+            final = (_new_step_arrays(n_dofs, size, nodes, members)[8:]
+                     + _new_kept_flags(nodes, members)[1:]
+                     + (work.final_tangent, work.final_solved))
+            work.make_compact(work.arrays + final)    # (sizes by type: any order)
             work.no_contact = np.zeros((members, nodes), dtype=bool)
             work.no_lift = np.zeros(members, dtype=bool)
             self._work = work
@@ -699,39 +706,47 @@ def _diagonal_blocks(damping, inverse, groups):
     return blocks(damping), groups, blocks(inverse)
 
 
-class _FinalEvaluation:
+def _new_step_arrays(n_dofs: int, n: int, nodes: int, members: int) -> tuple:
     """
-    Return the arrays of a step's final evaluation (new for every step: the caller keeps them).
+    Return new arrays for what a step hands its caller (recycled: :mod:`recycled`).
 
-    But for the tangents and the bit solve's flags, which are the batch's work arrays
-    (``work``: the step's StepWork): the evaluation gets a copy of the tangents when a node
-    touches the wall (None otherwise), and no flags.
-
-    In the order :func:`newmark_kernel.update` takes them: full (n_dofs, m), modal (n, m),
-    radial, contact (m, n_nodes), tangent (m, n_nodes, 2, 2); the bit's rop, omega, force,
-    torque, lifted (m,), jacobian (m, 2, 2), solved (m,).
+    q, q', q'' (m, n), hole (m,), finite, converged, on_bottom (m,) flags, error (m,); then
+    the final evaluation's full (n_dofs, m), modal (n, m), radial (m, n_nodes) and the bit's
+    rop, omega, force, torque (m,), jacobian (m, 2, 2). The evaluation's contact and lift-off
+    flags are in :func:`_new_kept_flags`, its tangents and the bit solve's flags are the
+    batch's work arrays (``StepWork.final_tangent``, ``final_solved``).
     """
+    empty = np.empty
+    return (empty((members, n)), empty((members, n)), empty((members, n)), empty(members),
+            empty(members, dtype=bool), empty(members, dtype=bool), empty(members, dtype=bool),
+            empty(members),
+            empty((n_dofs, members)), empty((n, members)), empty((members, nodes)),
+            empty(members), empty(members), empty(members), empty(members),
+            empty((members, 2, 2)))
 
-    def __init__(self, n_dofs: int, n: int, nodes: int, members: int, work):
-        self.full = np.empty((n_dofs, members))
-        self.modal = np.empty((n, members))
-        self.radial = np.empty((members, nodes))
-        self.contact = np.empty((members, nodes), dtype=bool)
-        self.tangent = work.final_tangent              # the batch's: copied out if touching
-        self.bit_rop, self.bit_omega = np.empty(members), np.empty(members)
-        self.bit_force, self.bit_torque = np.empty(members), np.empty(members)
-        self.bit_lifted = np.empty(members, dtype=bool)
-        self.bit_jacobian = np.empty((members, 2, 2))
-        self.bit_solved = work.final_solved            # the step's own (not in the evaluation)
-        self.arrays = (self.full, self.modal, self.radial, self.contact, self.tangent,
-                       self.bit_rop, self.bit_omega, self.bit_force, self.bit_torque,
-                       self.bit_lifted, self.bit_jacobian, self.bit_solved)
 
-    def evaluation(self, touching: bool) -> ForceEvaluation:
-        """Return the evaluation; ``touching``: whether any node touches the wall."""
-        return _make_evaluation(
-            full=self.full.T, modal=self.modal.T, weight_on_bit_n=self.bit_force,
-            torque_on_bit_nm=self.bit_torque, rop_m_per_s=self.bit_rop,
-            bit_speed_rad_per_s=self.bit_omega, lifted=self.bit_lifted,
-            bit_jacobian=self.bit_jacobian, contact=_make_contact(self.radial, self.contact),
-            contact_tangent=self.tangent.copy() if touching else None)
+def _new_kept_flags(nodes: int, members: int) -> tuple:
+    """
+    Return new arrays for what the integrator keeps a step longer than its caller.
+
+    The contraction rates before the step (m,) (to undo it), the final evaluation's contact
+    (m, n_nodes) and lift-off (m,) flags (the next step compares with them). Recycled apart
+    from :func:`_new_step_arrays`' larger set, which then needs two sets, not three: the
+    set written is the one of two steps back, still in cache (64 members: 5 % of the step).
+    """
+    return np.empty(members), np.empty((members, nodes), dtype=bool), np.empty(members, bool)
+
+
+def _final_evaluation(final: tuple, touching: bool) -> ForceEvaluation:
+    """
+    Return a step's final evaluation from its arrays, in the order the step kernel takes them.
+
+    The tangents (the batch's work array) are copied when ``touching`` (a node touches the
+    wall), else the evaluation has none; the bit solve's flags are not in it.
+    """
+    full, modal, radial, contact, tangent, rop, omega, force, torque, lifted, jacobian, _ = final
+    return _make_evaluation(
+        full=full.T, modal=modal.T, weight_on_bit_n=force, torque_on_bit_nm=torque,
+        rop_m_per_s=rop, bit_speed_rad_per_s=omega, lifted=lifted, bit_jacobian=jacobian,
+        contact=_make_contact(radial, contact),
+        contact_tangent=tangent.copy() if touching else None)
