@@ -58,6 +58,23 @@ def config_with(changes: dict):
     return build_config(merge(default_raw(), changes), source='<test>')
 
 
+def coarse_string(elements=(14, 4), lateral_modes=8, torsional_modes=4, axial_modes=3):
+    """
+    Return (config, reduced system) of the paper's string on a coarse mesh with a few modes.
+
+    ``elements``: of the pipe and of the collars.
+    """
+    from drill_twin.dynamics.reduced_system import build_reduced_system
+    from drill_twin.modal.reduced_basis import modal_analysis
+    sections = [dict(s, elements=n) for s, n in zip(default_raw()['sections'], elements)]
+    config = config_with({'sections': sections,
+                          'reduced_basis': {'lateral_modes': lateral_modes,
+                                            'torsional_modes': torsional_modes,
+                                            'axial_modes': axial_modes}})
+    model, _, basis = modal_analysis(config)
+    return config, build_reduced_system(model, basis)
+
+
 def physics_off() -> dict:
     """Every physical effect switched off."""
     return {name: False for name in default_raw()['physics']}

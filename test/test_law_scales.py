@@ -11,7 +11,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from conftest import config_with, default_raw
+from conftest import coarse_string
 
 from drill_twin.dynamics.bit_rock import BitRockLaw, fade_speeds
 from drill_twin.dynamics.reduced_system import build_reduced_system
@@ -28,12 +28,7 @@ COEFFICIENTS = ('a1_m_per_s', 'a2_m_per_n_s', 'a3_m_per_rad', 'a4_n_rad', 'a5_n_
 @pytest.fixture(scope='module')
 def coarse():
     """Return the paper's string on a coarse mesh with a few modes, and its reduced system."""
-    sections = [dict(s, elements=n) for s, n in zip(default_raw()['sections'], (14, 4))]
-    config = config_with({'sections': sections,
-                          'reduced_basis': {'lateral_modes': 8, 'torsional_modes': 4,
-                                            'axial_modes': 3}})
-    model, _, basis = modal_analysis(config)
-    return config, build_reduced_system(model, basis)
+    return coarse_string()
 
 
 def _with_law(config, scales):

@@ -9,12 +9,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import config_with, default_raw
+from conftest import coarse_string
 
 from drill_twin.dynamics.recycled import RecycledArrays
-from drill_twin.dynamics.reduced_system import build_reduced_system
 from drill_twin.dynamics.simulator import Simulator
-from drill_twin.modal.reduced_basis import modal_analysis
 
 
 def _pool(kept=6):
@@ -62,12 +60,7 @@ def test_the_pool_grows_to_what_is_held_and_forgets_past_kept():
 
 @pytest.fixture(scope='module')
 def coarse_system():
-    sections = [dict(s, elements=n) for s, n in zip(default_raw()['sections'], (14, 4))]
-    config = config_with({'sections': sections,
-                          'reduced_basis': {'lateral_modes': 8, 'torsional_modes': 4,
-                                            'axial_modes': 3}})
-    model, _, basis = modal_analysis(config)
-    return config, build_reduced_system(model, basis)
+    return coarse_string()
 
 
 def _values(state, result):
