@@ -646,7 +646,7 @@ class _RingBuffer:
         self._count += 1
 
     def values(self) -> np.ndarray:
-        """The rows in time order, (n, width) (a copy)."""
+        """Return the rows in time order, (n, width) (a copy)."""
         capacity = self._data.shape[1]
         if self._count <= capacity:
             return self._data[:, :self._count].T.copy()
@@ -654,5 +654,5 @@ class _RingBuffer:
         return np.concatenate([self._data[:, start:], self._data[:, :start]], axis=1).T
 
     def stored(self) -> np.ndarray:
-        """The columns as stored, (width, n): every row once, not in time order (a view)."""
+        """Return the columns as stored, (width, n): each row once, not in time order (a view)."""
         return self._data[:, :min(self._count, self._data.shape[1])]
