@@ -732,7 +732,8 @@ def _new_kept_flags(nodes: int, members: int) -> tuple:
     The contraction rates before the step (m,) (to undo it), the final evaluation's contact
     (m, n_nodes) and lift-off (m,) flags (the next step compares with them). Recycled apart
     from :func:`_new_step_arrays`' larger set, which then needs two sets, not three: the
-    set written is the one of two steps back, still in cache (64 members: 5 % of the step).
+    set written is the one of two steps back, still in cache (64 members: 1-5 % of the
+    step, measured).
     """
     return np.empty(members), np.empty((members, nodes), dtype=bool), np.empty(members, bool)
 

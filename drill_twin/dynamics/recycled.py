@@ -8,8 +8,8 @@ sets it made and hands out again the one used longest ago when no array of it is
 referenced from anywhere but the pool: CPython counts every reference (a variable, a
 container, a view, whose base is the array, a buffer export such as a memoryview), so an
 array that anything can still reach is never written again. When that set is still held,
-a new set is made; the pool grows to what its caller's pattern needs (three sets for a
-simulator) and past ``kept`` forgets its oldest set (left to whoever holds it).
+a new set is made; the pool grows to what its caller's pattern needs (two or three sets
+for a simulator, measured) and past ``kept`` forgets its oldest set (left to whoever holds it).
 
 Reference counts mean what this relies on only in CPython; elsewhere every set is new.
 """
