@@ -186,6 +186,14 @@ def test_kpis_over_the_moving_window(config):
     assert 0.2 < snapshot.stick_slip_severity < 1.5
     assert 1e8 < snapshot.mse_pa < 3e8
     assert 3.0 < snapshot.rop_m_per_h < 15.0
+    # MSE and ROP are kpi.py's over the window's columns (time, speed, ROP, WOB, TOB).
+    window = engine.kpi_window_samples()
+    assert window.shape == (501, 5)
+    mse = kpi.mechanical_specific_energy(window[:, 3], window[:, 4], window[:, 1],
+                                         window[:, 2], config.borehole.diameter_m)
+    assert snapshot.mse_pa == pytest.approx(float(mse), rel=1e-9)
+    assert snapshot.rop_m_per_h == pytest.approx(3600.0 * float(np.mean(window[:, 2])),
+                                                 rel=1e-9)
 
 
 def test_ensemble_statistics_contain_the_mean(config):
