@@ -3,7 +3,7 @@
     python benchmarks/soak.py [--duration 3600] [--warm-up 300] [--interval 5] [--no-log]
                               [--ensemble N] [--ensemble-in-process] [--log-dir DIR]
 
-Starts ``drill-twin twin`` (the shipped parameters, config/twin.yaml: 100 Hz, 16 members in a
+Starts ``drill-twin twin`` (the shipped parameters, config/twin.yaml: 100 Hz, 64 members in a
 worker process, an MCAP log) as a child process in its own ROS domain (localhost only), samples
 every ``--interval`` seconds the resident memory (RSS, /proc/PID/statm) of the node's process
 and of its ensemble worker and the size of the log directory, stops the twin with SIGINT after
