@@ -31,3 +31,33 @@ def test_members_under_their_own_hook_loads_step_as_single_runs():
     observed = batch.observe(detailed=1)
     np.testing.assert_array_equal(observed.hook_load_n, loads)
     assert not observed.on_bottom[1] and observed.on_bottom[0] and observed.on_bottom[2]
+
+
+def test_the_steps_counts_are_its_flags_and_a_landing_is_counted():
+    """
+    The kernel counts the bits on bottom and lifted off (StepResult.members_on_bottom, _lifted).
+
+    The Simulator's landing and lift-off bookkeeping reads those counts: member 1, lifted by its
+    hook load, lands when the load drops again, and only it is counted.
+    """
+    from drill_twin.dynamics.newmark import merged_result
+
+    config = load_config(overrides=LIGHT)
+    batch = Simulator(config, members=3)
+    weight = batch.system.model.prestress.hook_load_n - config.bit_rock.static_weight_on_bit_n
+    batch.set_hook_load(np.array([weight - 150e3, weight + 1.0e3, weight - 60e3]))
+    seen_off, seen_lifted = False, False
+    for step in range(400):
+        if step == 200:
+            batch.set_hook_load(np.array([weight - 150e3, weight - 150e3, weight - 60e3]))
+        result = batch.step()
+        assert result.members_on_bottom == np.count_nonzero(result.on_bottom)
+        assert result.members_lifted == np.count_nonzero(result.forces.lifted)
+        seen_off |= result.members_on_bottom < 3
+        seen_lifted |= result.members_lifted > 0
+    assert seen_off and seen_lifted
+    assert batch.landing_count[1] >= 1 and batch.landing_count[0] == batch.landing_count[2] == 0
+    assert batch.lift_off_count[1] >= 1 and batch.lift_off_count[0] == batch.lift_off_count[2] == 0
+    assert batch.on_bottom().all()
+    merged = merged_result(result, message='m')
+    assert (merged.on_bottom, merged.members_on_bottom, merged.members_lifted) == (None,) * 3

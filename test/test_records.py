@@ -13,7 +13,7 @@ from drill_twin.dynamics.records import maker
 
 def test_a_made_record_is_the_classs_own_and_stays_frozen():
     values = (True, np.ones(2, dtype=bool), np.ones(2, dtype=bool), 2, np.zeros(2), '',
-              None, np.zeros(2, dtype=int), np.ones(2, dtype=bool))
+              None, np.zeros(2, dtype=int), np.ones(2, dtype=bool), 2, 0)
     made, built = make_step_result(*values), StepResult(*values)
     assert type(made) is StepResult
     assert vars(made).keys() == vars(built).keys()

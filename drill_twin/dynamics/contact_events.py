@@ -213,11 +213,17 @@ class LiftOffEpisodes:
         self.lifted = np.array(lifted, dtype=bool)
         self._any = bool(self.lifted.any() or self.opened.any())
 
-    def update(self, lifted: np.ndarray, weight_on_bit_n: np.ndarray) -> None:
-        """Feed one step: the bit's lifted flag and f_bit (N, < 0 in compression), (m,)."""
-        lifted = np.asarray(lifted, dtype=bool)
-        if not self._any and not np.count_nonzero(lifted):    # on the rock before and now
+    def update(self, lifted: np.ndarray, weight_on_bit_n: np.ndarray,
+               lifted_count: int | None = None) -> None:
+        """
+        Feed one step: the bit's lifted flag and f_bit (N, < 0 in compression), (m,).
+
+        ``lifted_count``: how many flags are set, when the caller knows (None: counted here).
+        """
+        if not self._any and not (np.count_nonzero(lifted) if lifted_count is None
+                                  else lifted_count):         # on the rock before and now
             return
+        lifted = np.asarray(lifted, dtype=bool)
         if not (lifted.any() or self.lifted.any()):
             self.opened = np.zeros(self.members, dtype=bool)
             self._any = False

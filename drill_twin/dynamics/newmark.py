@@ -135,7 +135,9 @@ class StepResult:
     the full step worked; set by the Simulator, None from the integrator alone). on_bottom: (m,)
     the bit on the rock at the step's end (within ON_BOTTOM_TOLERANCE_M of the surface under
     it), as the step's kernel found it; None where a state was merged from other steps (the
-    Simulator then tests its state).
+    Simulator then tests its state). members_on_bottom, members_lifted: how many of on_bottom
+    and of the final evaluation's lift-off flags are set, counted by the kernel (so that the
+    time loop's checks need no pass of their own over the flags); None like on_bottom.
     """
 
     success: bool
@@ -147,10 +149,25 @@ class StepResult:
     forces: ForceEvaluation
     retries: np.ndarray | None = None
     on_bottom: np.ndarray | None = None
+    members_on_bottom: int | None = None
+    members_lifted: int | None = None
 
 
 make_step_result = maker(StepResult)
 """StepResult(...) with every field given, at the time loop's rate (:mod:`records`)."""
+
+
+def merged_result(result: StepResult, **changes) -> StepResult:
+    """
+    Return ``result`` with ``changes``, for a state merged from other steps.
+
+    What the step's kernel found of its own output (on_bottom and the counts beside it) no
+    longer holds: None.
+    """
+    return replace(result, on_bottom=None, members_on_bottom=None, members_lifted=None,
+                   **changes)
+
+
 _make_evaluation, _make_contact = maker(ForceEvaluation), maker(ContactForces)
 
 
@@ -551,7 +568,8 @@ class NewmarkIntegrator:
             self.forces.imbalance.set_top_angle(top_angle)
         if self.forces.bottom_pattern is not None:     # the angle the lobes turn with
             self.forces.bottom_pattern.set_top_angle(top_angle)
-        iterations, robust, count, touching = compiled.step(
+        (iterations, robust, count, touching, on_bottom_count,
+         lifted_count) = compiled.step(
             (np.ascontiguousarray(state.q), np.ascontiguousarray(state.q_rate),
              np.ascontiguousarray(state.q_acceleration),
              state.hole_u if has_hole else work.touch, has_hole),
@@ -590,7 +608,8 @@ class NewmarkIntegrator:
         new_state = BatchState(time, q, q_rate, q_acceleration, top_angle, top_speed_rad_per_s,
                                top_acceleration, hook_load_n, hole)
         return new_state, make_step_result(success, converged, finite, iterations, error,
-                                           message, evaluation, None, on_bottom)
+                                           message, evaluation, None, on_bottom,
+                                           on_bottom_count, lifted_count)
 
     def _operands(self, work: compiled.StepWork) -> StepOperands:
         """Return the step's operands object, made again when one of its tuples changed."""

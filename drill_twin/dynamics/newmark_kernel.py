@@ -621,7 +621,9 @@ def step(state, step_inputs, bookkeeping, operands, final, out):
     contact, one member's Newton iterations used to cost the whole batch's).
 
     Returns (iterations, iterations in which a member needed the bracketed bit solve,
-    members converged, whether any node of the final evaluation touches the wall).
+    members converged, whether any node of the final evaluation touches the wall, members
+    on bottom, members whose bit the final evaluation has lifted off): the counts are what
+    the time loop's Python checks of every step, so that it needs no pass over the flags.
     """
     forces, operators = operands.forces, operands.operators
     work, compact = operands.work, operands.compact
@@ -791,7 +793,9 @@ def step(state, step_inputs, bookkeeping, operands, final, out):
     for i in range(final_contact.shape[0]):
         for node in range(final_contact.shape[1]):
             touching = touching or final_contact[i, node]
-    return iterations, robust, count, touching
+    on_bottom_count = np.count_nonzero(on_bottom)
+    lifted_count = np.count_nonzero(final[9])              # the whole batch's flags
+    return iterations, robust, count, touching, on_bottom_count, lifted_count
 
 
 @inline

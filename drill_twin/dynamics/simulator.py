@@ -38,7 +38,7 @@ from drill_twin.dynamics.drawworks import HookBrake
 from drill_twin.dynamics.rig import drawworks_of
 from drill_twin.dynamics.forces import ForceEvaluation, NonlinearForces
 from drill_twin.dynamics.newmark import (ON_BOTTOM_TOLERANCE_M, BatchState, NewmarkIntegrator,
-                                         StepResult, make_step_result)
+                                         StepResult, make_step_result, merged_result)
 from drill_twin.dynamics.reduced_system import ReducedSystem, build_reduced_system
 from drill_twin.modal.reduced_basis import modal_analysis
 
@@ -204,7 +204,7 @@ class Simulator:
         self.contact_refinements = 0
         """Member-steps integrated again on dt / integration.contact_substeps because a node
         touched or left the wall in them (all members)."""
-        self._on_bottom = self.on_bottom()
+        self._set_on_bottom(self.on_bottom())
         self._observer = None
         # The compiled step and observation are loaded now, not in the time loop's first step.
         self.integrator.load_kernels(self.state, self.state.top_speed_rad_per_s,
@@ -269,7 +269,7 @@ class Simulator:
                                                    top_angle_rad=angle)
         self.state.time_s = self.time_s
         self.last = self._evaluate(self.state)
-        self._on_bottom = self.on_bottom()
+        self._set_on_bottom(self.on_bottom())
 
     def reset_members(self, members) -> None:
         """
@@ -342,7 +342,7 @@ class Simulator:
             getattr(state, name)[:k] = getattr(fresh, name)[:k]
         self.integrator.forget(np.arange(k))
         self.last = self._evaluate(state)
-        self._on_bottom = self.on_bottom()
+        self._set_on_bottom(self.on_bottom())
 
     def copy_members(self, targets, sources, germs=None) -> None:
         """
@@ -378,7 +378,7 @@ class Simulator:
                 values[targets] = values[sources]
         integrator.forget(targets)
         self.last = self._evaluate(state)
-        self._on_bottom = self.on_bottom()
+        self._set_on_bottom(self.on_bottom())
         for listener in self.reset_listeners:
             listener(targets)
 
@@ -415,17 +415,23 @@ class Simulator:
         if self.last.contact_tangent is not None or previous.contact_tangent is not None:
             self.contact_onset_count += np.sum(self.last.contact.in_contact
                                                & ~previous.contact.in_contact, axis=1)
-        self._count_episodes()
+        self._count_episodes(result.members_lifted)
         on_bottom = result.on_bottom                  # the kernel's, unless states were merged
         if on_bottom is None:
             on_bottom = self.on_bottom()
-        before = self._on_bottom
-        if np.count_nonzero(before) < before.size:    # (a bit can land only if one was off)
-            self.landing_count += on_bottom & ~before
-        self._on_bottom = on_bottom
+        if not self._all_on_bottom:                   # (a bit can land only if one was off)
+            self.landing_count += on_bottom & ~self._on_bottom
+        self._set_on_bottom(on_bottom, result.members_on_bottom)
         return make_step_result(result.success, result.converged, result.finite,
                                 result.iterations, result.error, result.message, result.forces,
-                                retries, on_bottom)
+                                retries, on_bottom, result.members_on_bottom,
+                                result.members_lifted)
+
+    def _set_on_bottom(self, on_bottom: np.ndarray, count: int | None = None) -> None:
+        """Keep the members' on-bottom flags (m,) and whether all are set (count: of them)."""
+        self._on_bottom = on_bottom
+        self._all_on_bottom = (count == self.members if count is not None
+                               else bool(on_bottom.all()))
 
     @property
     def impact_count(self) -> np.ndarray:
@@ -437,8 +443,12 @@ class Simulator:
         """Bit lift-offs since the start: lift-off episodes, (m,)."""
         return self.lift_off_episodes.count
 
-    def _count_episodes(self) -> None:
-        """Feed the step's contact flags and bit forces to the episode trackers."""
+    def _count_episodes(self, lifted: int | None = None) -> None:
+        """
+        Feed the step's contact flags and bit forces to the episode trackers.
+
+        ``lifted``: how many of the step's lift-off flags are set, when the kernel counted them.
+        """
         last, system = self.last, self.system
         state = self.state
         contacts = self.contact_episodes
@@ -450,7 +460,7 @@ class Simulator:
                 float(system.model.config.borehole.contact_stiffness_n_per_m),
                 lambda members, nodes: node_gap_m(system, state.q, members, nodes),
                 any_touching=last.contact_tangent is not None)
-        self.lift_off_episodes.update(last.lifted, last.weight_on_bit_n)
+        self.lift_off_episodes.update(last.lifted, last.weight_on_bit_n, lifted)
 
     def _retry(self, new_state: BatchState, result: StepResult, start_speed: float,
                speed: float):
@@ -480,11 +490,10 @@ class Simulator:
             failed_members = [int(m) for m in still_failed]
             message = (f'{message}; members {failed_members} failed on sub-steps down to '
                        f'dt/{2 ** SUBSTEP_LEVELS} too')
-        merged = replace(result, success=not still_failed, converged=converged,
-                         finite=result.finite | converged, message='' if not still_failed
-                         else message, forces=forces,
-                         error=np.where(converged & ~result.converged, 0.0, result.error),
-                         on_bottom=None)
+        merged = merged_result(result, success=not still_failed, converged=converged,
+                               finite=result.finite | converged, message='' if not still_failed
+                               else message, forces=forces,
+                               error=np.where(converged & ~result.converged, 0.0, result.error))
         return new_state, merged, retries
 
     def _refine_contact_changes(self, new_state: BatchState, result: StepResult,
@@ -528,8 +537,8 @@ class Simulator:
             getattr(new_state, name)[refined] = getattr(state, name)
         self.contact_refinements += len(refined)
         self.integrator.forget(refined)
-        return new_state, replace(result, forces=_with_members(result.forces, refined,
-                                                               evaluation), on_bottom=None)
+        return new_state, merged_result(result, forces=_with_members(result.forces, refined,
+                                                                     evaluation))
 
     def _fine_steps(self, members: np.ndarray, start_speed: float, speed: float, count: int):
         """
