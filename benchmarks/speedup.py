@@ -80,8 +80,10 @@ def main() -> None:
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix='drill_twin-speedup-') as folder:
         earlier = Path(folder) / 'earlier'
-        subprocess.run(['git', 'worktree', 'add', '--detach', str(earlier), args.revision],
-                       cwd=CHECKOUT, check=True, capture_output=True)
+        added = subprocess.run(['git', 'worktree', 'add', '--detach', str(earlier),
+                                args.revision], cwd=CHECKOUT, capture_output=True, text=True)
+        if added.returncode != 0:
+            parser.error(f'revision {args.revision!r}: {added.stderr.strip().splitlines()[-1]}')
         try:
             commit = subprocess.run(['git', 'rev-parse', '--short', 'HEAD'], cwd=earlier,
                                     check=True, capture_output=True, text=True).stdout.strip()
