@@ -116,6 +116,23 @@ def test_without_a_replacement_a_stalled_member_still_stalls_the_batch(config):
         _run(refusing, MAX_CONSECUTIVE_FAILURES + 1)
 
 
+def test_one_plausible_step_ends_a_run_of_breaches(config):
+    """A member stalls after MAX_CONSECUTIVE_FAILURES breaches in a row, not in all."""
+    guard = _Breached([])
+    guarded = GuardedSimulator(_batch(config, members=2), first_member=1,
+                               name='ensemble members', guard=guard)
+    for _ in range(3):                                # runs one short of the limit
+        guard.members = {1}
+        _run(guarded, MAX_CONSECUTIVE_FAILURES - 1)
+        guard.members = set()
+        _run(guarded, 1)
+    guard.members = {1}
+    _run(guarded, MAX_CONSECUTIVE_FAILURES - 1)
+    with pytest.raises(TwinStalled, match=rf'\[2\] broke a physical bound in '
+                                          rf'{MAX_CONSECUTIVE_FAILURES} steps'):
+        _run(guarded, 1)
+
+
 def test_the_filter_draws_donors_from_the_pool_and_carries_their_predictions(config):
     settings = load_assimilation(None, ['assimilation.filter.members=3',
                                         'assimilation.filter.parameters=law'])

@@ -196,6 +196,39 @@ def test_kpis_over_the_moving_window(config):
                                                  rel=1e-9)
 
 
+def test_the_kpi_windows_means_are_numpys_over_the_samples_in_the_window():
+    """
+    kpi.window_means: numpy's reductions over the samples at or after the window's start.
+
+    Samples in storage order (not time order), some before the start, one exactly at it; the
+    SSI and MSE made of the means are kpi.py's of those samples. A non-finite sample makes the
+    indicators non-finite, as numpy's; no sample in the window gives a count of 0.
+    """
+    rng = np.random.default_rng(7)
+    times = rng.permutation(np.arange(300) * 0.01)
+    speed, rop = rng.uniform(-1.0, 12.0, 300), rng.uniform(-1e-3, 5e-3, 300)
+    wob, tob = rng.uniform(-2e5, 1e4, 300), rng.uniform(-5e3, 2e4, 300)
+    start = times[17]                                       # one sample exactly at the start
+    inside = times >= start
+    assert 0 < inside.sum() < 300
+    count, mean, fastest, slowest, mean_rop, weight, power = kpi.window_means(
+        times, start, speed, rop, wob, tob)
+    s, r, w, t = speed[inside], rop[inside], wob[inside], tob[inside]
+    assert count == inside.sum()
+    assert (mean, fastest, slowest) == pytest.approx((s.mean(), s.max(), s.min()), rel=1e-12)
+    assert (mean_rop, weight, power) == pytest.approx(
+        (r.mean(), np.abs(w).mean(), np.mean(np.abs(t) * np.abs(s))), rel=1e-12)
+    assert kpi.severity_of(mean, fastest, slowest) == pytest.approx(
+        float(kpi.stick_slip_severity(s)), rel=1e-12)
+    assert kpi.specific_energy_of(weight, power, mean_rop, 0.3) == pytest.approx(
+        float(kpi.mechanical_specific_energy(w, t, s, r, 0.3)), rel=1e-12)
+    assert math.isinf(kpi.specific_energy_of(weight, power, 0.0, 0.3))    # no rock cut
+    speed[np.flatnonzero(inside)[3]] = np.nan
+    count, mean, fastest, slowest, *_ = kpi.window_means(times, start, speed, rop, wob, tob)
+    assert math.isnan(kpi.severity_of(mean, fastest, slowest))
+    assert kpi.window_means(times, 10.0, speed, rop, wob, tob)[0] == 0
+
+
 def test_ensemble_statistics_contain_the_mean(config):
     with threadpool_limits(limits=1, user_api='blas'):
         engine = _engine(config, members=8)

@@ -368,6 +368,33 @@ def test_the_compiled_screen_decides_as_the_full_check(config):
     assert sorted(np.flatnonzero(screened).tolist()) == sorted(reasons)
 
 
+def test_the_screens_speed_bound_follows_the_top_speed(config):
+    """
+    Above the envelope's top speed the bit-speed bound rises with the top speed, and falls back.
+
+    A bit at 1.2 times the bound of the envelope's speeds passes at twice the envelope's top
+    speed and is flagged again back at the envelope's, screened in that order (the screen
+    keeps its bounds while the top speed is held).
+    """
+    from drill_twin.twin.envelope import ENVELOPE_TOP_DRIVE_SPEED_MAX_RAD_PER_S as top_max
+    simulator = Simulator(config)
+    simulator.step()
+    guard = StateGuard(simulator.system, simulator.law)
+    last = simulator.last
+    forces = SimpleNamespace(rop_m_per_s=last.rop_m_per_s.copy(),
+                             weight_on_bit_n=last.weight_on_bit_n.copy(),
+                             torque_on_bit_nm=last.torque_on_bit_nm.copy(),
+                             bit_speed_rad_per_s=np.array([1.2 * guard.rotation_speed_max(0.0)]))
+    flagged = []
+    for top in (top_max, 2.0 * top_max, 2.0 * top_max, top_max):
+        state = simulator.state
+        state = BatchState(state.time_s, state.q, state.q_rate, state.q_acceleration,
+                           state.top_angle_rad, top, 0.0, state.hook_load_n, state.hole_u)
+        batch = SimpleNamespace(state=state, last=forces, hole_depth_m=simulator.hole_depth_m)
+        flagged.append(bool(guard._screen(batch, state, forces)[0]))
+    assert flagged == [True, False, False, True]
+
+
 # -- KPIs: finite or nothing -----------------------------------------------------------------
 
 def test_kpis_are_none_until_computable(config):

@@ -527,7 +527,11 @@ class TwinEngine:
 
     def _in_window(self, times_s: np.ndarray) -> np.ndarray:
         """Which of the samples taken at ``times_s`` are inside the KPI window, (n,) bools."""
-        return times_s >= self.time_s - self.kpi_window_s - 1e-9
+        return times_s >= self._window_start_s()
+
+    def _window_start_s(self) -> float:
+        """Return the time of the KPI window's start (s): the samples at or after it are in."""
+        return self.time_s - self.kpi_window_s - 1e-9
 
     def snapshot(self) -> TwinSnapshot:
         o = self._last
@@ -587,18 +591,14 @@ class TwinEngine:
 
         None where a value cannot be computed (fewer than two samples, non-finite).
         """
-        columns = self._window.stored()               # (the samples' order does not matter)
-        inside = self._in_window(columns[0])
-        if not inside.all():
-            columns = columns[:, inside]
-        if columns.shape[1] < 2:
+        times, speed, rop, wob, tob = self._window.stored()   # (in any order)
+        count, speed, fastest, slowest, rop, wob, power = kpi.window_means(
+            times, self._window_start_s(), speed, rop, wob, tob)
+        if count < 2:
             return None, None, None
-        _, speed, rop, wob, tob = columns
-        with np.errstate(all='ignore'):
-            ssi = kpi.stick_slip_severity(speed)
-            mse = kpi.mechanical_specific_energy(wob, tob, speed, rop,
-                                                 self.config.borehole.diameter_m)
-            rop = 3600.0 * np.mean(rop)
+        ssi = kpi.severity_of(speed, fastest, slowest)
+        mse = kpi.specific_energy_of(wob, power, rop, self.config.borehole.diameter_m)
+        rop = 3600.0 * rop
         return tuple(float(v) if np.isfinite(v) else None for v in (ssi, mse, rop))
 
 

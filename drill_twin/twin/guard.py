@@ -110,6 +110,7 @@ class StateGuard:
         self._mass = None if identity else system.mass
         self._deepest = None
         self._screen_work = None
+        self._screen_top, self._screen_bounds = None, None   # the bounds at a top speed
         self._lateral_max = np.ascontiguousarray(self.lateral_max_m, dtype=float)
         self._no_nodes = np.zeros((0, self._lateral_max.shape[0]))
 
@@ -182,9 +183,13 @@ class StateGuard:
             self._screen_work = np.empty(members, dtype=bool)
         bad = self._screen_work
         top = state.top_speed_rad_per_s
-        bounds = np.array([self.string_length_m, self.bit_penetration_m,
-                           self.axial_speed_max_m_per_s, self.rotation_speed_max(top),
-                           self.weight_on_bit_max_n, self.kinetic_energy_max(top)])
+        if top != self._screen_top:                 # (the top speed is mostly held)
+            self._screen_top = top
+            self._screen_bounds = np.array([
+                self.string_length_m, self.bit_penetration_m, self.axial_speed_max_m_per_s,
+                self.rotation_speed_max(top), self.weight_on_bit_max_n,
+                self.kinetic_energy_max(top)])
+        bounds = self._screen_bounds
         q = np.ascontiguousarray(state.q)
         v = w = self._no_nodes
         if self.lateral:
