@@ -77,6 +77,7 @@ class Twin:
         from drill_twin.ros.parameters import TwinParameters
         from drill_twin.ros.twin_node import create_twin_node
 
+        self.started_ns = time.time_ns()      # (earlier twins' /rosout lines are older)
         values = {'fast': True, 'log_dir': str(log_dir), 'ensemble_members': 4, 'seed': 3,
                   **parameters}
         ros_only = {name: values.pop(name) for name in ('use_sim_time',) if name in values}
@@ -146,10 +147,16 @@ class Twin:
                 if name is None or s.name == name]
 
     def rosout(self, level: int | None = None, containing: str = ''):
-        """Return the twin's /rosout records (optionally of one level, containing a text)."""
+        """
+        Return the twin's /rosout records (optionally of one level, containing a text).
+
+        Those of this twin only: /rosout is transient local, and the probe can hear the last
+        lines of an earlier twin (same node name) that the middleware still holds.
+        """
         return [m for m in self.received[itf.ROSOUT]
                 if m.name == itf.NODE_NAME and (level is None or m.level == level)
-                and containing in m.msg]
+                and containing in m.msg
+                and m.stamp.sec * 1_000_000_000 + m.stamp.nanosec >= self.started_ns]
 
     def series(self, topic: str, field: str, index: int) -> tuple[np.ndarray, np.ndarray]:
         """(stamps in s, values) of one JointState field of one joint."""
@@ -435,6 +442,42 @@ BAD_COMMANDS = [(itf.CMD_TOP_DRIVE_SPEED, math.nan, 'top-drive speed', 'not a fi
                 (itf.CMD_TOP_DRIVE_SPEED, -1.0, 'top-drive speed', 'outside [0, 30]'),
                 (itf.CMD_HOOK_LOAD, 6.0e6, 'hook load', 'outside [0, 5e+06]'),
                 (itf.CMD_HOOK_LOAD, -math.inf, 'hook load', 'not a finite')]
+
+
+def test_incompatible_qos_is_reported_by_the_subscriptions_not_the_publishers(twin_factory):
+    """
+    The twin's publishers have no QoS-event handlers; its subscriptions keep rclpy's defaults.
+
+    rclpy's executor puts every handler in its wait set at every turn (two a publisher: over
+    the twin's 40 publishers, 10-15 % of a core at 100 Hz, benchmarks/twin_node.py). A subscriber
+    that asks for more than the twin offers (transient local on a volatile topic) is told by
+    its own handler; a controller that offers less than a command subscription asks for (best
+    effort) is reported on the twin's /rosout.
+    """
+    from rcl_interfaces.msg import Log
+    from rclpy.event_handler import SubscriptionEventCallbacks
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import Float64
+
+    twin = twin_factory()
+    node = twin.node
+    handlers = list(node.waitables)
+    assert node._outputs and all(not p.event_handlers for p in node._outputs.values())
+    assert all(len(s.event_handlers) == 2 for s in node._commands.values())
+    assert {id(h) for s in node._commands.values() for h in s.event_handlers} <= {
+        id(h) for h in handlers}
+    told = []
+    twin.probe.create_subscription(
+        JointState, itf.BIT_STATE, lambda message: None,
+        QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL),
+        event_callbacks=SubscriptionEventCallbacks(incompatible_qos=told.append))
+    twin.probe.create_publisher(Float64, itf.CMD_HOOK_LOAD, QoSProfile(
+        depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
+    twin.spin_until(lambda: told and twin.rosout(Log.WARN, 'offering incompatible QoS'),
+                    'both ends told of the incompatible QoS')
+    assert told[0].total_count >= 1
+    assert itf.CMD_HOOK_LOAD in twin.rosout(Log.WARN, 'offering incompatible QoS')[0].msg
 
 
 def test_bad_commands_are_rejected(twin_factory):
