@@ -15,7 +15,9 @@ RTF that ``drill-twin simulate`` reports (its own loop, recording included), run
 three times (its loop of 20 s of model time lasts about half a second, and the same code's
 speed moves by 15-30 % from process to process on this VM: one run says little), and the CPU
 time of the twin's tick, mean model and 64 members in one process
-(``benchmarks/twin_tick.py``: p50, p99 against the 10 ms budget).
+(``benchmarks/twin_tick.py``: p50, p99 against the 10 ms budget), back to back and paced (one
+tick every 10 ms, as the node runs them: on this VM a paced tick costs 1.4-3 times as much
+CPU, its working set gone from the caches by the next tick).
 
 On a shared machine the absolute figures move with the load; the matrix rate measured in the
 same run and the fractions say how much. This VM also slows down by up to half for periods of
@@ -133,11 +135,12 @@ def simulate_command(seconds: float) -> tuple[float, float, float]:
     return float(match.group(1)), wall, child_cpu
 
 
-def twin_tick_command(ticks: int) -> str:
-    """The summary line of ``benchmarks/twin_tick.py --ticks ticks`` (its own process)."""
+def twin_tick_command(ticks: int, paced: bool = False) -> str:
+    """The summary line of ``benchmarks/twin_tick.py --ticks ticks [--paced]`` (own process)."""
     script = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'twin_tick.py')
-    out = subprocess.run([sys.executable, script, '--ticks', str(ticks)], capture_output=True,
-                         text=True, check=True)
+    out = subprocess.run([sys.executable, script, '--ticks', str(ticks),
+                          *(['--paced'] if paced else [])], capture_output=True, text=True,
+                         check=True)
     return out.stdout.strip().splitlines()[-1]
 
 
@@ -189,7 +192,9 @@ def main() -> None:
               f'real-time factor {rtfs} (median {median:.2f}; its loop, wall clock); a command '
               f'took {wall:.1f} s wall, {cpu:.1f} s CPU (medians, start-up included)')
     if args.ticks > 0:
-        print(f'twin tick (benchmarks/twin_tick.py, one process): {twin_tick_command(args.ticks)}')
+        for paced in (False, True):
+            print(f'twin tick (benchmarks/twin_tick.py{" --paced" if paced else ""}, one '
+                  f'process): {twin_tick_command(args.ticks, paced)}')
     print(f'load average at the end {os.getloadavg()[0]:.2f}')
 
 
