@@ -98,7 +98,6 @@ class GuardedSimulator:
         self.breaches = 0
         self._consecutive_failures = 0
         self._consecutive_breaches = np.zeros(simulator.members, dtype=int)
-        self._breaching = False                   # whether any count above is not 0
 
     def step(self):
         """One step; the StepResult, or None if the step failed even after a restart."""
@@ -141,15 +140,12 @@ class GuardedSimulator:
 
         Restart them from a safe state there (or keep the last good state if that breaks too).
         """
-        if not reasons:
-            if self._breaching:                   # a run of breaches ends
-                self._consecutive_breaches[:] = 0
-                self._breaching = False
+        if not reasons:                           # any run of breaches ends
+            self._consecutive_breaches[:] = 0
             return
         breached = np.zeros(self.simulator.members, dtype=bool)
         breached[list(reasons)] = True
         self._consecutive_breaches = np.where(breached, self._consecutive_breaches + 1, 0)
-        self._breaching = True
         members = sorted(reasons)
         state = self.simulator.state
         breach = self.simulator.last                # the bit at the breaching step
