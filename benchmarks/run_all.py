@@ -16,7 +16,7 @@ three times (its loop of 20 s of model time lasts about half a second, and the s
 speed moves by 15-30 % from process to process on this VM: one run says little), and the CPU
 time of the twin's tick, mean model and 64 members in one process
 (``benchmarks/twin_tick.py``: p50, p99 against the 10 ms budget), back to back and paced (one
-tick every 10 ms, as the node runs them: on this VM a paced tick costs 1.4-3 times as much
+tick every 10 ms, as the node runs them: on this VM a paced tick costs 1.3-3 times as much
 CPU, its working set gone from the caches by the next tick).
 
 On a shared machine the absolute figures move with the load; the matrix rate measured in the

@@ -449,7 +449,7 @@ def test_incompatible_qos_is_reported_by_the_subscriptions_not_the_publishers(tw
     The twin's publishers have no QoS-event handlers; its subscriptions keep rclpy's defaults.
 
     rclpy's executor puts every handler in its wait set at every turn (two a publisher: over
-    the twin's 40 publishers, 10-15 % of a core at 100 Hz, benchmarks/twin_node.py). A subscriber
+    the twin's 40 publishers, 10-17 % of a core at 100 Hz, benchmarks/twin_node.py). A subscriber
     that asks for more than the twin offers (transient local on a volatile topic) is told by
     its own handler; a controller that offers less than a command subscription asks for (best
     effort) is reported on the twin's /rosout.

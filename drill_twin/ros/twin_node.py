@@ -182,7 +182,7 @@ class TwinNode(Node):
             self.tf_enabled = messages.TFMessage is not None
             # Without rclpy's default QoS-event handlers: the executor puts every handler in
             # its wait set at every turn, two a publisher, and over the twin's 40 publishers
-            # that cost 10-15 % of a core at 100 Hz (benchmarks/twin_node.py). A subscriber
+            # that cost 10-17 % of a core at 100 Hz (benchmarks/twin_node.py). A subscriber
             # that asks for an incompatible QoS or type is told by its own handlers; the
             # twin's subscriptions keep theirs (a controller that offers an incompatible QoS
             # is reported here).
