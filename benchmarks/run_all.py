@@ -17,7 +17,9 @@ speed moves by 15-30 % from process to process on this VM: one run says little),
 time of the twin's tick, mean model and 64 members in one process
 (``benchmarks/twin_tick.py``: p50, p99 against the 10 ms budget), back to back and paced (one
 tick every 10 ms, as the node runs them: on this VM a paced tick costs 1.3-3 times as much
-CPU, its working set gone from the caches by the next tick).
+CPU, its working set gone from the caches by the next tick), and what pacing costs the
+machine for reference workloads that are not the twin (``benchmarks/pacing.py``: near 1 on a
+dedicated machine).
 
 On a shared machine the absolute figures move with the load; the matrix rate measured in the
 same run and the fractions say how much. This VM also slows down by up to half for periods of
@@ -135,13 +137,18 @@ def simulate_command(seconds: float) -> tuple[float, float, float]:
     return float(match.group(1)), wall, child_cpu
 
 
+def benchmark_lines(script: str, *arguments: str) -> list[str]:
+    """The lines ``benchmarks/<script> arguments`` prints, run in a process of its own."""
+    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), script)
+    out = subprocess.run([sys.executable, path, *arguments], capture_output=True, text=True,
+                         check=True)
+    return out.stdout.strip().splitlines()
+
+
 def twin_tick_command(ticks: int, paced: bool = False) -> str:
     """The summary line of ``benchmarks/twin_tick.py --ticks ticks [--paced]`` (own process)."""
-    script = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'twin_tick.py')
-    out = subprocess.run([sys.executable, script, '--ticks', str(ticks),
-                          *(['--paced'] if paced else [])], capture_output=True, text=True,
-                         check=True)
-    return out.stdout.strip().splitlines()[-1]
+    return benchmark_lines('twin_tick.py', '--ticks', str(ticks),
+                           *(['--paced'] if paced else []))[-1]
 
 
 def main() -> None:
@@ -195,6 +202,10 @@ def main() -> None:
         for paced in (False, True):
             print(f'twin tick (benchmarks/twin_tick.py{" --paced" if paced else ""}, one '
                   f'process): {twin_tick_command(args.ticks, paced)}')
+        print('what running every 10 ms costs this machine for work that is not the twin '
+              '(benchmarks/pacing.py, CPU time per run):')
+        for line in benchmark_lines('pacing.py'):
+            print(f'  {line}')
     print(f'load average at the end {os.getloadavg()[0]:.2f}')
 
 
