@@ -61,11 +61,11 @@ def stamp_ns(message) -> int:
 class Twin:
     """A TwinNode (fast, small ensemble, logging to ``log_dir``) and a probe on one executor.
 
-    The probe records every message of every twin topic and of /rosout in ``received``, and
-    holds publishers of the two commands.
+    The probe records every message of every twin topic (of ``topics`` if given) and of
+    /rosout in ``received``, and holds publishers of the two commands.
     """
 
-    def __init__(self, log_dir: Path, **parameters):
+    def __init__(self, log_dir: Path, topics=None, **parameters):
         import rclpy
         from rcl_interfaces.msg import Log
         from rclpy.executors import SingleThreadedExecutor
@@ -88,6 +88,8 @@ class Twin:
         deep = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE)
         self._subscriptions = []
         for topic, (type_, _) in self.node._published_topics().items():
+            if topics is not None and topic not in topics:
+                continue
             qos = deep
             if topic == itf.CLOCK:
                 qos = QoSProfile(depth=5000, reliability=ReliabilityPolicy.BEST_EFFORT)
@@ -164,6 +166,12 @@ class Twin:
         return (np.array([stamp_ns(m) * 1e-9 for m in messages]),
                 np.array([getattr(m, field)[index] for m in messages]))
 
+    def stop_listening(self) -> None:
+        """Destroy the probe's subscriptions to the twin's topics (what it heard is kept)."""
+        for subscription in self._subscriptions:
+            self.probe.destroy_subscription(subscription)
+        self._subscriptions = []
+
     def close(self) -> None:
         self.node.close()
         self.executor.shutdown()
@@ -214,6 +222,7 @@ def recorded(ros, tmp_path_factory):
         twin.spin_until(lambda: stamp_ns(twin.received[itf.BIT_STATE][-1]) == final_ns
                         and any('stopping' in m.msg for m in twin.rosout()), 'the last tick')
         twin.node.close()
+        twin.stop_listening()              # a later twin's topics have no subscriber but its own
         log_path = twin.node.log.path
         yield {'twin': twin, 'received': twin.received, 'log': log_path,
                'final_ns': final_ns, 'sent_at_ns': sent_at_ns, 'hook_before': hook_before,
@@ -743,6 +752,71 @@ def test_rerun_loads_the_log(recorded, tmp_path):
 
 
 # -- 9. unwritable log directory (continue) --------------------------------------------------
+
+class CountingPublisher:
+    """A real publisher that counts what it sends (the node's output, seen from inside)."""
+
+    def __init__(self, publisher, counts: dict, topic: str):
+        self._publisher, self._counts, self._topic = publisher, counts, topic
+
+    def publish(self, message) -> None:
+        self._counts[self._topic] += 1
+        self._publisher.publish(message)
+
+    def get_subscription_count(self) -> int:
+        return self._publisher.get_subscription_count()
+
+
+def test_a_topic_nobody_hears_is_only_logged_until_a_subscriber_comes(twin_factory):
+    """A volatile topic no subscription matches is not published; the log is as before.
+
+    The probe hears the bit state alone: the station's topics, the top state and /clock (fast
+    mode) are not published. A subscriber that comes later hears the station every tick from
+    its first message on. The log holds every state at the same ticks as the bit state (it
+    takes them at log_state_rate_hz, 25 Hz: one tick in four), as when every topic is heard.
+    """
+    from mcap_ros2.reader import read_ros2_messages
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from sensor_msgs.msg import Imu
+
+    from drill_twin.recording import reader
+
+    twin = twin_factory(topics=(itf.BIT_STATE,))
+    station = itf.vibration_imu_topic(twin.node.stations_m[0])
+    sent = defaultdict(int)
+    outputs = twin.node._outputs
+    assert outputs[station].get_subscription_count() == 0
+    for topic in list(outputs):
+        outputs[topic] = CountingPublisher(outputs[topic], sent, topic)
+    twin.spin_to(0.6)
+    ticks = len(twin.received[itf.BIT_STATE])
+    assert ticks >= 60 and sent[itf.BIT_STATE] >= ticks
+    assert sent[station] == sent[itf.TOP_STATE] == sent[itf.CLOCK] == 0
+
+    heard = []
+    subscription = twin.probe.create_subscription(
+        Imu, station, heard.append, QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE))
+    twin.spin_until(lambda: outputs[station].get_subscription_count() > 0
+                    and subscription.get_publisher_count() > 0, 'the late subscriber matched')
+    twin.spin_until(lambda: len(heard) >= 50, '50 station messages')
+    last = twin.last_stamp_s()
+    twin.spin_until(lambda: heard and stamp_ns(heard[-1]) * 1e-9 >= last - 1e-6,
+                    'the station up to the bit state')
+    stamps = [stamp_ns(m) for m in heard]
+    assert np.all(np.diff(stamps) == TICK_NS)          # every tick from the first one on
+    assert sent[station] >= len(heard) and sent[itf.TOP_STATE] == sent[itf.CLOCK] == 0
+
+    twin.node.close()
+    logged = defaultdict(list)
+    for split in reader.log_files(twin.node.log.path):
+        for item in read_ros2_messages(str(split)):
+            logged[item.channel.topic].append(item.log_time_ns)
+    bit = logged[itf.BIT_STATE]
+    assert len(bit) >= ticks // 4 and itf.CLOCK not in logged
+    for topic in (station, itf.TOP_STATE, itf.vibration_displacement_topic(
+            twin.node.stations_m[-1])):
+        assert logged[topic] == bit, topic
+
 
 def test_unwritable_log_dir_runs_on_without_a_log(twin_factory, tmp_path):
     from rcl_interfaces.msg import Log

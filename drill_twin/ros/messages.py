@@ -39,6 +39,11 @@ def stamp(time_ns: int) -> Time:
     return Time(sec=int(time_ns // 1_000_000_000), nanosec=int(time_ns % 1_000_000_000))
 
 
+def every_topic(topic: str) -> bool:
+    """Want the message of every topic (the builders' default ``wanted``)."""
+    return True
+
+
 def header(time_ns: int, frame_id: str) -> Header:
     """std_msgs/Header stamped ``time_ns`` (ns) in ``frame_id``."""
     return Header(stamp=stamp(time_ns), frame_id=frame_id)
@@ -71,9 +76,9 @@ def top_state(snapshot: TwinSnapshot, time_ns: int) -> JointState:
                       effort=[float(o.top_torque_nm[0]), o.hook_load_n])
 
 
-def station_messages(snapshot: TwinSnapshot, stations_m, time_ns: int):
+def station_messages(snapshot: TwinSnapshot, stations_m, time_ns: int, wanted=every_topic):
     """
-    (topic, message) of every station.
+    (topic, message) of every station (of the topics ``wanted`` keeps).
 
     Imu (accelerations m/s^2: axial, v, w; angular velocity rad/s: spin, theta_y', theta_z';
     orientation not provided) and the displacement (x axial, y = v, z = w, m).
@@ -82,20 +87,24 @@ def station_messages(snapshot: TwinSnapshot, stations_m, time_ns: int):
     out = []
     for k, x_m in enumerate(stations_m):
         frame = itf.station_frame(x_m)
-        imu = Imu(header=header(time_ns, frame))
-        imu.orientation_covariance[0] = -1.0                  # REP 145: no orientation
-        a = o.station_acceleration_m_per_s2[0, k]
-        w = o.station_spin_rate_rad_per_s[0, k]
-        imu.linear_acceleration.x, imu.linear_acceleration.y, imu.linear_acceleration.z = (
-            float(a[0]), float(a[1]), float(a[2]))
-        imu.angular_velocity.x, imu.angular_velocity.y, imu.angular_velocity.z = (
-            float(w[0]), float(w[1]), float(w[2]))
-        d = o.station_displacement_m[0, k]
-        displacement = Vector3Stamped(header=header(time_ns, frame))
-        displacement.vector.x, displacement.vector.y, displacement.vector.z = (
-            float(d[0]), float(d[1]), float(d[2]))
-        out.append((itf.vibration_imu_topic(x_m), imu))
-        out.append((itf.vibration_displacement_topic(x_m), displacement))
+        topic = itf.vibration_imu_topic(x_m)
+        if wanted(topic):
+            imu = Imu(header=header(time_ns, frame))
+            imu.orientation_covariance[0] = -1.0                  # REP 145: no orientation
+            a = o.station_acceleration_m_per_s2[0, k]
+            w = o.station_spin_rate_rad_per_s[0, k]
+            imu.linear_acceleration.x, imu.linear_acceleration.y, imu.linear_acceleration.z = (
+                float(a[0]), float(a[1]), float(a[2]))
+            imu.angular_velocity.x, imu.angular_velocity.y, imu.angular_velocity.z = (
+                float(w[0]), float(w[1]), float(w[2]))
+            out.append((topic, imu))
+        topic = itf.vibration_displacement_topic(x_m)
+        if wanted(topic):
+            d = o.station_displacement_m[0, k]
+            displacement = Vector3Stamped(header=header(time_ns, frame))
+            displacement.vector.x, displacement.vector.y, displacement.vector.z = (
+                float(d[0]), float(d[1]), float(d[2]))
+            out.append((topic, displacement))
     return out
 
 
@@ -208,38 +217,44 @@ def logged(topic: str, states_due: bool) -> bool:
     return topic != itf.CLOCK and (states_due or not every_tick_topic(topic))
 
 
-def state_messages(snapshot: TwinSnapshot, stations_m, time_ns: int):
+def state_messages(snapshot: TwinSnapshot, stations_m, time_ns: int, wanted=every_topic):
     """
     (topic, message) of every tick.
 
-    The bit state and wrench, the top, the wall contacts, the stations.
+    The bit state and wrench, the top, the wall contacts, the stations; only those of the
+    topics ``wanted`` (topic -> bool) keeps: the others are not built.
     """
-    out = [(itf.BIT_STATE, bit_state(snapshot.bit, time_ns)),
-           (itf.BIT_WRENCH, bit_wrench(snapshot.bit, time_ns)),
-           (itf.TOP_STATE, top_state(snapshot, time_ns)),
-           (itf.CONTACT_FORCES, contact_forces(snapshot))]
-    return out + station_messages(snapshot, stations_m, time_ns)
+    states = ((itf.BIT_STATE, lambda: bit_state(snapshot.bit, time_ns)),
+              (itf.BIT_WRENCH, lambda: bit_wrench(snapshot.bit, time_ns)),
+              (itf.TOP_STATE, lambda: top_state(snapshot, time_ns)),
+              (itf.CONTACT_FORCES, lambda: contact_forces(snapshot)))
+    return ([(topic, build()) for topic, build in states if wanted(topic)]
+            + station_messages(snapshot, stations_m, time_ns, wanted))
 
 
-def tick_messages(snapshot: TwinSnapshot, stations_m, time_ns: int, plan: TickPlan):
+def tick_messages(snapshot: TwinSnapshot, stations_m, time_ns: int, plan: TickPlan,
+                  wanted=every_topic):
     """
     (topic, message) of everything a tick publishes, in order.
 
     The states and surface readings, then what ``plan`` says is due (KPIs and the driller's
-    view, ensemble, TF), the events, /clock.
+    view, ensemble, TF), the events, /clock; of these, the topics ``wanted`` (topic -> bool)
+    keeps (the every-tick states of the others are not even built).
     """
-    out = state_messages(snapshot, stations_m, time_ns) + surface_messages(snapshot)
+    out = (state_messages(snapshot, stations_m, time_ns, wanted)
+           + surface_messages(snapshot, wanted))
+    due = []
     if plan.kpis:
-        out += kpi_messages(snapshot) + driller_messages(snapshot)
+        due += kpi_messages(snapshot) + driller_messages(snapshot)
     if plan.ensemble_stamp_ns is not None and snapshot.ensemble_mean is not None:
-        out += ensemble_messages(snapshot, plan.ensemble_stamp_ns)
+        due += ensemble_messages(snapshot, plan.ensemble_stamp_ns)
     if plan.tf:
-        out.append((itf.TF, tf(moving_transforms(snapshot, time_ns))))
+        due.append((itf.TF, tf(moving_transforms(snapshot, time_ns))))
     if snapshot.events:
-        out.append((itf.DIAGNOSTICS, events(snapshot.events, time_ns)))
+        due.append((itf.DIAGNOSTICS, events(snapshot.events, time_ns)))
     if plan.clock:
-        out.append((itf.CLOCK, clock(time_ns)))
-    return out
+        due.append((itf.CLOCK, clock(time_ns)))
+    return out + [(topic, message) for topic, message in due if wanted(topic)]
 
 
 def kpi_messages(snapshot: TwinSnapshot):
@@ -259,11 +274,12 @@ def surface_values(snapshot: TwinSnapshot) -> dict:
             itf.SURFACE_ROP: s.rop_m_per_s, itf.SURFACE_WOB: s.weight_on_bit_n}
 
 
-def surface_messages(snapshot: TwinSnapshot):
-    """(topic, Float64) of the surface readings in SI (none without readings)."""
+def surface_messages(snapshot: TwinSnapshot, wanted=every_topic):
+    """(topic, Float64) of the surface readings in SI (none without readings; of ``wanted``)."""
     if snapshot.surface is None:
         return []
-    return [(topic, Float64(data=value)) for topic, value in surface_values(snapshot).items()]
+    return [(topic, Float64(data=value)) for topic, value in surface_values(snapshot).items()
+            if wanted(topic)]
 
 
 DRILLER_SCALE = {'rpm': 60.0 / (2.0 * math.pi), 'kN m': 1e-3, 'kN': 1e-3,

@@ -187,9 +187,12 @@ class TwinNode(Node):
             # twin's subscriptions keep theirs (a controller that offers an incompatible QoS
             # is reported here).
             quiet = PublisherEventCallbacks(use_default_callbacks=False)
+            published = self._published_topics()
             self._outputs = {topic: self.create_publisher(type_, topic, rclpy_qos_profile(qos),
                                                           event_callbacks=quiet)
-                             for topic, (type_, qos) in self._published_topics().items()}
+                             for topic, (type_, qos) in published.items()}
+            self._durable = {topic for topic, (_, qos) in published.items()
+                             if qos.durability == 'transient_local'}
             self._subscribe()
             # The twin's clock starts as late as it can: the first tick should find it on time.
             pace = 'external' if self.sim_time else 'fast' if self.fast else 'wall'
@@ -496,8 +499,13 @@ class TwinNode(Node):
         for topic, value in applied.items():
             self._publish(itf.cmd_applied_topic(topic),
                           messages.command_applied(topic, value, effect_ns), now)
+        logging = self._logging()
+
+        def wanted(topic):
+            return logging and messages.logged(topic, log_states) or self._heard(topic)
+
         for topic, message in messages.tick_messages(snapshot, self.stations_m, now,
-                                                     self._plan(snapshot)):
+                                                     self._plan(snapshot), wanted):
             self._publish(topic, message, now, log=messages.logged(topic, log_states))
         self._after_tick(snapshot, now)
 
@@ -595,15 +603,35 @@ class TwinNode(Node):
         return self.ticks % every == 0
 
     def _publish(self, topic: str, message, time_ns: int, log: bool = True) -> None:
+        """
+        Send ``message`` to the subscribers of ``topic`` and, if ``log``, to the log.
+
+        Only where it goes somewhere: a volatile topic with no matched subscription is not
+        published (the middleware would drop the message: a subscriber hears a topic from its
+        matching on, published or not), a durable one always is (kept for late joiners).
+        """
+        log = log and self._logging()
+        heard = self._heard(topic)
+        if not (heard or log):
+            return
         data = serialize_message(message)           # once, for the wire and for the log
-        try:
-            self._outputs[topic].publish(data)
-        except RCLError:
-            if self.context.ok():
-                raise
-            return                                  # a signal shut the context down mid-tick
-        if log and self.log:
+        if heard:
+            try:
+                self._outputs[topic].publish(data)
+            except RCLError:
+                if self.context.ok():
+                    raise
+                return                              # a signal shut the context down mid-tick
+        if log:
             self.log.write_serialized(topic, data, time_ns)
+
+    def _heard(self, topic: str) -> bool:
+        """Whether a message on ``topic`` reaches a subscriber (matched, or a late joiner)."""
+        return topic in self._durable or self._outputs[topic].get_subscription_count() > 0
+
+    def _logging(self) -> bool:
+        """Whether the log takes messages (open, not failed)."""
+        return self.log is not None and self.log.open
 
     # -- health --------------------------------------------------------------------------
     def _on_health(self) -> None:
