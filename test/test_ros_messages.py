@@ -13,7 +13,7 @@ PLAN = messages.TickPlan(kpis=True, ensemble_stamp_ns=7, clock=True)
 
 
 def a_snapshot():
-    """A snapshot of the synthetic stick-slip signals (its surface readings and ensemble)."""
+    """Return a snapshot of the synthetic stick-slip signals (surface readings, ensemble)."""
     state = {'angle': 0.0, 'depth': 1500.0, 'dt': 0.01, 'every_second': 100}
     return _snapshot(0.37, 37, STATIONS_M, state)
 
