@@ -22,7 +22,9 @@ dropped (gaps in the publisher's sequence numbers) and superseded (a later comma
 before the tick). The surface readings are published every tick, the driller's view (WITS
 names, drilling units) with the KPIs. Health is reported from a wall-clock timer of its own
 (``health_rate_hz``), so a twin whose clock stands still still reports. Every published
-message, the commands as applied and the twin's own log lines are recorded to an MCAP log.
+message, the commands as applied and the twin's own log lines are recorded to an MCAP log; a
+volatile topic is sent only while a subscription matches it (:meth:`TwinNode._publish`), and a
+tick builds its states only for a subscriber or the log.
 Header stamps, /clock and the log times use the twin's clock: the ROS time at start plus the
 simulated time (from zero in fast mode, from the first /clock message with use_sim_time).
 """
