@@ -16,8 +16,9 @@ p50s:
   at 64 members (operands 160 kB: they fit in this class of core's 512 kB L2);
 - ``python``: a loop over a dict of 2000 entries (the interpreter's own working set).
 
-On a dedicated machine every ratio is near 1; a ratio well above 1 for the streams says the
-machine loses a working set of that size between two ticks. Single-threaded BLAS.
+On a dedicated machine, where nothing else evicts the caches, every ratio should be near 1; a
+ratio well above 1 for the streams says the machine loses a working set of that size between
+two ticks. Single-threaded BLAS.
 """
 from __future__ import annotations
 

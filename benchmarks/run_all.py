@@ -18,8 +18,8 @@ time of the twin's tick, mean model and 64 members in one process
 (``benchmarks/twin_tick.py``: p50, p99 against the 10 ms budget), back to back and paced (one
 tick every 10 ms, as the node runs them: on this VM a paced tick costs 1.3-3 times as much
 CPU, its working set gone from the caches by the next tick), and what pacing costs the
-machine for reference workloads that are not the twin (``benchmarks/pacing.py``: near 1 on a
-dedicated machine).
+machine for reference workloads that are not the twin (``benchmarks/pacing.py``: it should be
+near 1 on a dedicated machine).
 
 On a shared machine the absolute figures move with the load; the matrix rate measured in the
 same run and the fractions say how much. This VM also slows down by up to half for periods of
