@@ -22,8 +22,9 @@ $(STAMP): setup.py setup.cfg package.xml
 twin: $(STAMP)
 	$(BIN)/drill-twin twin
 
+# Two workers (pytest-xdist), a test file to each in turn: the files' module fixtures run once.
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run_all.py

@@ -36,7 +36,8 @@ setup(
         # rclpy and the message packages come from ROS on a ROS machine; without ROS
         # they come from PyPI's ROS wheels.
         'ros': ['ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces'],
-        'test': ['pytest>=7', 'pytest-timeout', 'sympy>=1.12', 'wheel', 'pandas', 'hypothesis>=6',
+        'test': ['pytest>=7', 'pytest-timeout', 'pytest-xdist>=3', 'sympy>=1.12', 'wheel',
+                 'pandas', 'hypothesis>=6',
                  'rosbags>=0.10', 'flake8>=7', 'flake8-docstrings>=1.7', 'pydocstyle>=6.3'],
     },
     zip_safe=True,

@@ -20,6 +20,19 @@ REPO = Path(__file__).resolve().parents[1]
 os.environ.setdefault('RERUN_TELEMETRY', '0')
 
 
+def worker_domain_ids(low: int, high: int) -> range:
+    """
+    Return the ROS domain ids of ``range(low, high)`` this pytest process may use.
+
+    pytest-xdist runs test files side by side in worker processes (``make test``): worker k of
+    n takes every n-th id from low + k, so two workers never share a domain (a node in one
+    would hear the other's twin). Without xdist, the whole range.
+    """
+    worker = os.environ.get('PYTEST_XDIST_WORKER', 'gw0')
+    count = int(os.environ.get('PYTEST_XDIST_WORKER_COUNT', '1'))
+    return range(low + int(worker.removeprefix('gw')), high, count)
+
+
 def ros_variables(folder: Path, domain_id: int) -> dict[str, str]:
     """
     Environment of an isolated ROS 2 run.

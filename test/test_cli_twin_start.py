@@ -17,12 +17,13 @@ from pathlib import Path
 
 import pytest
 from cli_output import assert_one_line
-from conftest import ros_variables
+from conftest import ros_variables, worker_domain_ids
 
 from drill_twin.ros.parameters import (ParameterError, check_parameter, model_overrides,
                                        parameters_from_ros_arguments, validate_ros_arguments)
 
-DOMAIN_IDS = random.Random(os.getpid()).sample(range(202, 232), 4)   # apart from 1-101, 120-200
+# Apart from the node tests' domains (1-101) and the replay's (120-200).
+DOMAIN_IDS = random.Random(os.getpid()).sample(worker_domain_ids(202, 232), 2)
 
 
 @pytest.fixture

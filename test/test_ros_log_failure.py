@@ -23,7 +23,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from conftest import REPO, ros_variables
+from conftest import REPO, ros_variables, worker_domain_ids
 
 from drill_twin.recording import reader
 from drill_twin.recording.bag import listed_splits
@@ -97,8 +97,8 @@ sys.exit(status)
 @pytest.fixture(scope='module')
 def env(tmp_path_factory):
     folder = tmp_path_factory.mktemp('log_failure')
-    return dict(os.environ, PYTHONPATH=str(REPO),
-                **ros_variables(folder, random.SystemRandom().randint(1, 101)))
+    domain = random.SystemRandom().choice(worker_domain_ids(1, 102))
+    return dict(os.environ, PYTHONPATH=str(REPO), **ros_variables(folder, domain))
 
 
 @contextlib.contextmanager

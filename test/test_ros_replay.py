@@ -12,9 +12,10 @@ import sys
 import time
 
 import pytest
-from conftest import REPO, ros_environment
+from conftest import REPO, ros_environment, worker_domain_ids
 
-DOMAIN_ID = random.Random(os.getpid()).randint(120, 200)   # apart from the node tests' 1-101
+# Apart from the node tests' domains (1-101).
+DOMAIN_ID = random.Random(os.getpid()).choice(worker_domain_ids(120, 201))
 
 
 @pytest.fixture(scope='module')

@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import REPO, ros_variables
+from conftest import REPO, ros_variables, worker_domain_ids
 
 from drill_twin import interface as itf
 from drill_twin.recording import reader
@@ -34,7 +34,8 @@ DRILL_TWIN = str(Path(sys.executable).with_name('drill-twin'))
 @pytest.fixture(scope='module')
 def env(tmp_path_factory):
     folder = tmp_path_factory.mktemp('ros_processes')
-    return dict(os.environ, **ros_variables(folder, random.SystemRandom().randint(1, 101)))
+    domain = random.SystemRandom().choice(worker_domain_ids(1, 102))
+    return dict(os.environ, **ros_variables(folder, domain))
 
 
 def run(command: list[str], env: dict, timeout_s: float = WAIT_S) -> subprocess.CompletedProcess:

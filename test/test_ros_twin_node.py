@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from conftest import ros_environment
+from conftest import ros_environment, worker_domain_ids
 
 from drill_twin import interface as itf
 from drill_twin.ros.messages import every_tick_topic
@@ -27,7 +27,7 @@ from drill_twin.ros.messages import every_tick_topic
 STATIONS = ('x700m', 'x1590m')
 TICK_NS = 10_000_000                  # 100 Hz, one step of 10 ms
 WAIT_S = 120.0                        # deadline of any wait (a loaded 2-core machine is slow)
-DOMAIN_ID = random.SystemRandom().randint(1, 101)
+DOMAIN_ID = random.SystemRandom().choice(worker_domain_ids(1, 102))
 
 
 # -- fixtures and helpers ------------------------------------------------------------------------
