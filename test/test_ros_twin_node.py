@@ -818,6 +818,49 @@ def test_a_topic_nobody_hears_is_only_logged_until_a_subscriber_comes(twin_facto
         assert logged[topic] == bit, topic
 
 
+def test_a_signal_mid_tick_stops_the_sending_not_the_logging(ros, tmp_path):
+    """A signal shuts the context down while a tick publishes.
+
+    The rest of the tick's messages are not sent (rcl refuses a publisher of a shut-down
+    context, even to count its subscribers) and raise nothing; the log still takes them.
+    """
+    from mcap_ros2.reader import read_ros2_messages
+    from rclpy.context import Context
+    from std_msgs.msg import Float64
+
+    from drill_twin.recording import reader
+    from drill_twin.ros.parameters import TwinParameters
+    from drill_twin.ros.twin_node import create_twin_node
+
+    context = Context()
+    ros.init(context=context)
+    node = create_twin_node(TwinParameters.from_values(
+        {'fast': True, 'log_dir': str(tmp_path), 'ensemble_members': 0}), context=context)
+    probe = ros.create_node('mid_tick_probe', context=context)
+    try:
+        probe.create_subscription(Float64, itf.SURFACE_SPEED, lambda message: None, 10)
+        deadline = time.monotonic() + WAIT_S
+        while node._outputs[itf.SURFACE_SPEED].get_subscription_count() == 0:
+            assert time.monotonic() < deadline, 'DDS discovery did not complete'
+            time.sleep(0.01)
+        ros.shutdown(context=context)                    # the signal, in the middle of a tick
+        node._publish(itf.SURFACE_SPEED, Float64(data=4.25), 123_000_000)
+        node._publish(itf.SURFACE_TORQUE, Float64(data=-1.5), 123_000_000)
+        assert node.log.open
+    finally:
+        node.close()
+        node.destroy_node()
+        probe.destroy_node()
+        ros.try_shutdown(context=context)
+    logged = {}
+    for split in reader.log_files(node.log.path):
+        for item in read_ros2_messages(str(split), topics=[itf.SURFACE_SPEED,
+                                                           itf.SURFACE_TORQUE]):
+            logged[item.channel.topic] = (item.log_time_ns, item.ros_msg.data)
+    assert logged[itf.SURFACE_SPEED] == (123_000_000, 4.25)
+    assert logged[itf.SURFACE_TORQUE] == (123_000_000, -1.5)
+
+
 def test_unwritable_log_dir_runs_on_without_a_log(twin_factory, tmp_path):
     from rcl_interfaces.msg import Log
 

@@ -629,7 +629,14 @@ class TwinNode(Node):
 
     def _heard(self, topic: str) -> bool:
         """Whether a message on ``topic`` reaches a subscriber (matched, or a late joiner)."""
-        return topic in self._durable or self._outputs[topic].get_subscription_count() > 0
+        if topic in self._durable:
+            return True
+        try:
+            return self._outputs[topic].get_subscription_count() > 0
+        except RCLError:
+            if self.context.ok():
+                raise
+            return False                            # a signal shut the context down mid-tick
 
     def _logging(self) -> bool:
         """Whether the log takes messages (open, not failed)."""
