@@ -23,6 +23,7 @@ two ticks. Single-threaded BLAS.
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 
 import numpy as np
@@ -86,6 +87,12 @@ def main() -> None:
     parser.add_argument('--sizes', type=float, nargs='+', default=[0.25, 1.0, 3.0],
                         help='working sets of the stream workloads (MB)')
     args = parser.parse_args()
+    problem = (f'--runs: must be at least 1, got {args.runs}' if args.runs < 1 else
+               f'--sizes: working sets must be positive (MB), got {args.sizes}'
+               if not all(size > 0 for size in args.sizes) else None)
+    if problem:
+        print(f'pacing.py: {problem}', file=sys.stderr)
+        sys.exit(2)
     rng = np.random.default_rng(0)
     workloads = [(f'stream {size:g} MB', stream_workload(size, rng)) for size in args.sizes]
     workloads += [('blas L2', blas_workload(rng)), ('python', python_workload())]
