@@ -16,7 +16,7 @@ $(STAMP): setup.py setup.cfg package.xml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(PIP) install --upgrade pip
 	$(PIP) install -e '.[ros,test]'
-	$(BIN)/python -m drill_twin.dynamics.warm_up
+	$(BIN)/python -m drill_twin.cli.warm_up
 	@touch $(STAMP)
 
 twin: $(STAMP)

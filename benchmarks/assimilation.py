@@ -4,7 +4,7 @@
                                       [--settle 0 5 10 20] [--scale 1.3 ...]
                                       [--truth-set KEY=VALUE ...]
 
-The truth (rig emulator, :func:`drill_twin.assimilation.rig.run_rig`): the paper's string
+The truth (rig emulator, :func:`drill_twin.assimilation.rig_emulator.run_rig`): the paper's string
 with the bit-rock coefficients a1..a5 changed (default x 1.2, 0.9, 1.1, 1.3, 0.7: up to
 +-30 %; this truth drills 0.08-0.12 mm/s, near the law's cutting threshold; ``--scale 1.1
 1.15 0.85 1.2 0.8``, the second truth of docs/ASSIMILATION.md, drills 0.7-1.3 mm/s), a germ
@@ -47,13 +47,13 @@ from pathlib import Path
 import numpy as np
 
 from drill_twin.assimilation.offline import run_filter, summarise
-from drill_twin.assimilation.rig import run_rig
+from drill_twin.assimilation.rig_emulator import run_rig
 from drill_twin.assimilation.settings import load_assimilation
 from drill_twin.assimilation.steady_law import steady_point
 from drill_twin.cli.rig import read_rig_log, write_rig_log
 from drill_twin.config import load_config
-from drill_twin.dynamics.bit_rock import BitRockLaw
-from drill_twin.dynamics.reduced_system import build_reduced_system
+from drill_twin.model.bit_rock import BitRockLaw
+from drill_twin.model.reduced_system import build_reduced_system
 from drill_twin.modal.reduced_basis import modal_analysis
 from drill_twin.uncertainty.germ import germs_for_realizations
 

@@ -36,9 +36,9 @@ COLUMNS = ('drive', 'weight_on_bit_kn', 'speed_hz', 'stick_slip_severity',
 def run_point(drive: str, wob_kn: float, speed_hz: float, duration_s: float,
               window_s: float, extra: tuple[str, ...] = (), label: str | None = None) -> dict:
     from drill_twin.config import load_config
-    from drill_twin.dynamics import kpi
-    from drill_twin.dynamics.simulator import Simulator, SimulationDiverged
-    from drill_twin.dynamics.top_drive import attach_top_drive
+    from drill_twin.analysis import kpi
+    from drill_twin.integrator.simulator import Simulator, SimulationDiverged
+    from drill_twin.rig.top_drive import attach_top_drive
 
     overrides = TORSIONAL_AXIAL + [f'bit_rock.static_weight_on_bit_n={-1e3 * wob_kn}',
                                    f'operation.top_drive_speed_hz={speed_hz}']
@@ -129,7 +129,7 @@ def main() -> None:
     out = Path(args.out_dir)
     out.mkdir(parents=True, exist_ok=True)
     points = [(w, 0.83) for w in args.wob_kn] + [(150.0, s) for s in args.speed_hz
-                                                  if s != 0.83]
+                                                 if s != 0.83]
     table = out / 'drive_controllers.csv'
     rows = []
     if args.append and table.exists():

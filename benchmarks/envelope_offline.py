@@ -25,8 +25,8 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from drill_twin.config import load_config
-from drill_twin.dynamics.reduced_system import build_reduced_system
-from drill_twin.dynamics.simulator import SimulationDiverged, Simulator
+from drill_twin.model.reduced_system import build_reduced_system
+from drill_twin.integrator.simulator import SimulationDiverged, Simulator
 from drill_twin.modal.reduced_basis import modal_analysis
 from drill_twin.uncertainty.germ import germs_for_realizations
 
@@ -36,11 +36,11 @@ def phases(simulator: Simulator):
     static = simulator.hook_load_command_n
     weight = static - simulator.config.bit_rock.static_weight_on_bit_n
     return [('paper point', 20, 5.2, static), ('15 rad/s', 40, 15.0, None),
-             ('hook -50 kN', 50, None, static - 5e4), ('hook -150 kN', 90, None, static - 1.5e5),
-             ('stopped on bottom', 30, 0.0, None), ('restarted 15 rad/s', 30, 15.0, None),
-             ('30 rad/s, WOB 300 kN', 50, 30.0, weight - 3e5),
-             ('picked up', 20, 5.2, weight + 4e4), ('set down', 20, None, weight - 3e4),
-             ('paper point again', 30, 5.2, static)]
+            ('hook -50 kN', 50, None, static - 5e4), ('hook -150 kN', 90, None, static - 1.5e5),
+            ('stopped on bottom', 30, 0.0, None), ('restarted 15 rad/s', 30, 15.0, None),
+            ('30 rad/s, WOB 300 kN', 50, 30.0, weight - 3e5),
+            ('picked up', 20, 5.2, weight + 4e4), ('set down', 20, None, weight - 3e4),
+            ('paper point again', 30, 5.2, static)]
 
 
 def main() -> None:

@@ -91,7 +91,7 @@ def main() -> None:
     parser.add_argument('--wob-kn', type=float, default=100.0)
     parser.add_argument('--out', type=Path, default=None, help='log directory (default: temp)')
     args = parser.parse_args()
-    from drill_twin.dynamics import kpi
+    from drill_twin.analysis import kpi
 
     settings = overrides(args.wob_kn)
     out = args.out or Path(tempfile.mkdtemp(prefix='external_controller_'))

@@ -23,8 +23,8 @@ blas_threads.limit_to_one()
 
 from drill_twin.assimilation.state import MemberState  # noqa: E402
 from drill_twin.config import load_config  # noqa: E402
-from drill_twin.dynamics import newmark  # noqa: E402
-from drill_twin.dynamics.simulator import Simulator  # noqa: E402
+from drill_twin.integrator import newmark  # noqa: E402
+from drill_twin.integrator.simulator import Simulator  # noqa: E402
 from drill_twin.uncertainty.germ import germs_for_realizations  # noqa: E402
 
 

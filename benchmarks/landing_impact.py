@@ -29,8 +29,8 @@ import numpy as np
 def landing(time_step_s: float, axial_modes: int, drop_n: float, lift_n: float):
     """Return (gap m, landing speed m/s, peak |WOB| N, Z v N) of one drop."""
     from drill_twin.config import load_config
-    from drill_twin.dynamics.simulator import Simulator
-    from drill_twin.twin.envelope import StringEnvelope
+    from drill_twin.integrator.simulator import Simulator
+    from drill_twin.integrator.envelope import StringEnvelope
     config = load_config(None, [
         f'operation.top_drive_speed_hz={2 / (2 * math.pi)}',
         'initial_conditions.steady_twist=true', 'initial_conditions.lateral_deflection_m=0',

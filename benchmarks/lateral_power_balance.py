@@ -4,7 +4,7 @@
                                                [--set KEY=VALUE ...]
 
 Runs the mean model of the paper's point (any configuration through --config and --set) with
-:class:`~drill_twin.dynamics.power_balance.LateralEnergyBalance` and prints, every 10 s, the
+:class:`~drill_twin.analysis.power_balance.LateralEnergyBalance` and prints, every 10 s, the
 lateral energy and the work each term has done on the lateral DOFs since the start (J):
 damping, f_se, f_ke, the wall, the imbalance, the rotating damping, and the closure (zero up to
 the iteration error). A term with positive work feeds the lateral motion from the axial and
@@ -27,8 +27,8 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from drill_twin.config import load_config
-from drill_twin.dynamics.power_balance import TERMS, LateralEnergyBalance
-from drill_twin.dynamics.simulator import Simulator
+from drill_twin.analysis.power_balance import TERMS, LateralEnergyBalance
+from drill_twin.integrator.simulator import Simulator
 
 STATION_M = 700.0
 

@@ -28,7 +28,7 @@ import scipy.linalg as la
 import scipy.sparse as sp
 
 from drill_twin.config import load_config
-from drill_twin.dynamics.reduced_system import build_reduced_system
+from drill_twin.model.reduced_system import build_reduced_system
 from drill_twin.fem import strain_energy as se
 from drill_twin.modal.reduced_basis import modal_analysis
 
@@ -114,7 +114,7 @@ def main() -> None:
         print(f'{angle:>6g}° {"full":>8}  ' + ' '.join(f'{f:9.5f}' for f in full))
         print(f'{"":>7} {"reduced":>8}  ' + ' '.join(f'{f:9.5f}' for f in reduced))
     if args.steady_twist:
-        from drill_twin.dynamics.simulator import Simulator
+        from drill_twin.integrator.simulator import Simulator
         simulator = Simulator(config, system=system)
         q = simulator._initial_coordinates(config.operation.top_drive_speed_rad_per_s,
                                            lateral=False, steady_twist=True)[0][0]

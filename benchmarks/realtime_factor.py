@@ -15,8 +15,8 @@ import time
 from threadpoolctl import threadpool_limits
 
 from drill_twin.config import load_config
-from drill_twin.dynamics.reduced_system import build_reduced_system
-from drill_twin.dynamics.simulator import Simulator
+from drill_twin.model.reduced_system import build_reduced_system
+from drill_twin.integrator.simulator import Simulator
 from drill_twin.modal.reduced_basis import modal_analysis
 
 

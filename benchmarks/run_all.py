@@ -46,8 +46,8 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from drill_twin.config import load_config
-from drill_twin.dynamics.reduced_system import build_reduced_system
-from drill_twin.dynamics.simulator import Simulator
+from drill_twin.model.reduced_system import build_reduced_system
+from drill_twin.integrator.simulator import Simulator
 from drill_twin.modal.reduced_basis import modal_analysis
 
 SIMULATE_RUNS = 3
@@ -133,7 +133,7 @@ def simulate_command(seconds: float) -> tuple[float, float, float]:
         wall, end = time.perf_counter() - start, os.times()
     match = re.search(r'real-time factor ([0-9.]+)', out.stdout)
     child_cpu = (end.children_user - cpu.children_user) + (end.children_system
-                                                            - cpu.children_system)
+                                                           - cpu.children_system)
     return float(match.group(1)), wall, child_cpu
 
 

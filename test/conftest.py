@@ -20,6 +20,14 @@ REPO = Path(__file__).resolve().parents[1]
 os.environ.setdefault('RERUN_TELEMETRY', '0')
 
 
+def pytest_collection_modifyitems(config, items):
+    """Mark every test under test/ros with ``ros`` (``-m 'not ros'`` runs the core alone)."""
+    ros = Path(__file__).parent / 'ros'
+    for item in items:
+        if ros in Path(str(item.fspath)).parents:
+            item.add_marker(pytest.mark.ros)
+
+
 def worker_domain_ids(low: int, high: int) -> range:
     """
     Return the ROS domain ids of ``range(low, high)`` this pytest process may use.
@@ -77,7 +85,7 @@ def coarse_string(elements=(14, 4), lateral_modes=8, torsional_modes=4, axial_mo
 
     ``elements``: of the pipe and of the collars.
     """
-    from drill_twin.dynamics.reduced_system import build_reduced_system
+    from drill_twin.model.reduced_system import build_reduced_system
     from drill_twin.modal.reduced_basis import modal_analysis
     sections = [dict(s, elements=n) for s, n in zip(default_raw()['sections'], elements)]
     config = config_with({'sections': sections,

@@ -3,9 +3,9 @@ import math
 
 import numpy as np
 
-from drill_twin.dynamics.simulator import Observation
+from drill_twin.integrator.simulator import Observation
 from drill_twin.twin.engine import BitState, TwinSnapshot
-from drill_twin.twin.stepping import TwinEvent
+from drill_twin.integrator.stepping import TwinEvent
 
 N_NODES = 57
 

@@ -23,8 +23,8 @@ from drill_twin.recording.mcap_log import McapLog
 from drill_twin.recording.topics import twin_topics
 from drill_twin.ros import messages
 from drill_twin.twin.engine import BitState
-from drill_twin.twin.stepping import TwinEvent
-from drill_twin.twin.surface import SurfaceReadings
+from drill_twin.integrator.stepping import TwinEvent
+from drill_twin.rig.surface import SurfaceReadings
 
 DEFAULT_START_NS = 1_700_000_000_000_000_000
 """2023-11-14T22:13:20Z, an arbitrary epoch for synthetic logs."""

@@ -4,7 +4,7 @@
 
 LOG is a twin log (a .mcap file or a bag directory), e.g. from
 ``drill-twin twin --fast --duration 30 --log-dir /tmp/runs``.  The log is converted once
-(:func:`drill_twin.recording.rerun_view.save_rrd`); for every tab a blueprint (.rbl) with
+(:func:`drill_twin.viz.rerun_view.save_rrd`); for every tab a blueprint (.rbl) with
 that tab active is written and the screenshot tool (``rerun-screenshot INPUT.rrd
 LAYOUT.rbl OUT.png``: rerun on a virtual screen with a software renderer) saves what a user
 sees.  The tool is CPU heavy: the tabs are taken one at a time.
@@ -32,9 +32,9 @@ def main(argv=None) -> int:
     parser.add_argument('--tabs', nargs='+', default=None, help='only these tabs')
     args = parser.parse_args(argv)
 
-    from drill_twin.recording import rerun_layout as layout
-    from drill_twin.recording.rerun_native import geometry_of, log_files, read_run
-    from drill_twin.recording.rerun_view import rerun_executable, save_rrd
+    from drill_twin.viz import rerun_layout as layout
+    from drill_twin.viz.rerun_native import geometry_of, log_files, read_run
+    from drill_twin.viz.rerun_view import rerun_executable, save_rrd
 
     tool = shutil.which(args.tool) or args.tool
     if not Path(tool).is_file():

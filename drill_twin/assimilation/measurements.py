@@ -22,7 +22,7 @@ import math
 import numpy as np
 
 from drill_twin.assimilation.settings import SENSOR_OF, AssimilationConfig
-from drill_twin.dynamics.simulator import Observation
+from drill_twin.integrator.simulator import Observation
 
 CHANNELS = tuple(SENSOR_OF)
 SENSORS = ('top_drive', 'hook', 'downhole')

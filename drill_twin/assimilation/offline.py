@@ -26,8 +26,8 @@ from drill_twin.assimilation.sequential import Sample, SequentialFilter
 from drill_twin.assimilation.settings import SENSOR_OF, AssimilationConfig
 from drill_twin.assimilation.state import law_scales_for_members
 from drill_twin.config.schema import DrillStringConfig
-from drill_twin.dynamics.simulator import Simulator
-from drill_twin.twin.stepping import GuardedSimulator
+from drill_twin.integrator.simulator import Simulator
+from drill_twin.integrator.stepping import GuardedSimulator
 from drill_twin.uncertainty.germ import germs_for_realizations
 
 

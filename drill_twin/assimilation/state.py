@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from drill_twin.dynamics.simulator import Simulator
+from drill_twin.integrator.simulator import Simulator
 
 GERM_COORDINATES = ('log_l11', 'l12', 'log_l22')
 LAW_COORDINATES = ('log_a1', 'log_a2', 'log_a3', 'log_a4', 'log_a5')

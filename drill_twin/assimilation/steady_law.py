@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import brentq
 
-from drill_twin.dynamics.bit_rock import BitRockLaw
+from drill_twin.model.bit_rock import BitRockLaw
 
 ROP_BRACKET_M_PER_S = (1e-9, 0.1)
 """Where the steady ROP is searched (m/s)."""

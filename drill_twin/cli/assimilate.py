@@ -96,7 +96,7 @@ def run(args: argparse.Namespace) -> int:
                          f'({log.duration_s:g} s)')
     from drill_twin.assimilation.offline import run_filter, summarise
     from drill_twin.cli.common import preflight_or_refuse
-    from drill_twin.twin.stepping import TwinStalled
+    from drill_twin.integrator.stepping import TwinStalled
 
     checked = preflight_or_refuse(config, args.overrides)
     try:

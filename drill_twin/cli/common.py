@@ -55,12 +55,12 @@ def report_and_exit_code(error: Exception) -> int:
 
 def preflight_or_refuse(config: DrillStringConfig, overrides=(), short_run: bool = True):
     """
-    Build the model and run :func:`drill_twin.dynamics.preflight.preflight`.
+    Build the model and run :func:`drill_twin.analysis.preflight.preflight`.
 
     A refusal becomes a :class:`ConfigError` blamed on ``--set`` or the file (returns the
     ``PreflightResult``).
     """
-    from drill_twin.dynamics.preflight import SHORT_RUN_S, PreflightError, preflight
+    from drill_twin.analysis.preflight import SHORT_RUN_S, PreflightError, preflight
 
     try:
         return preflight(config, SHORT_RUN_S if short_run else 0.0)
@@ -70,7 +70,7 @@ def preflight_or_refuse(config: DrillStringConfig, overrides=(), short_run: bool
 
 def build_model_or_refuse(config: DrillStringConfig, overrides=()):
     """(model, basis) of ``config``; a numerical failure is a one-line :class:`ConfigError`."""
-    from drill_twin.dynamics.preflight import PreflightError, build_model
+    from drill_twin.analysis.preflight import PreflightError, build_model
 
     try:
         model, basis, _ = build_model(config, reduced_system=False)

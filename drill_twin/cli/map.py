@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from pathlib import Path
 
 import numpy as np
 
@@ -90,6 +91,7 @@ def run(args: argparse.Namespace) -> int:
     window = args.window if args.window is not None else min(DEFAULT_WINDOW_S, args.duration)
     from drill_twin.simulation.stick_slip_map import MapSpec, run_map
     from drill_twin.simulation.stick_slip_map_io import write_map
+    from drill_twin.viz.map_figure import plot_map
     from drill_twin.uncertainty.executors import make_executor
 
     try:
@@ -105,7 +107,9 @@ def run(args: argparse.Namespace) -> int:
         result = run_map(config, spec, executor, progress=ProgressBar('map'))
     finally:
         executor.close()
-    write_map(result, args.out, figure=not args.no_figure)
+    write_map(result, args.out)
+    if not args.no_figure:
+        plot_map(result, Path(args.out) / 'map.png')
     print(_text(result, args.out))
     return 0
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 from dataclasses import replace
 import os
+from pathlib import Path
 
 from drill_twin.cli.common import (UsageError, add_config_arguments, blamed, config_from_args,
                                    positive_seconds, preflight_or_refuse, require_memory)
@@ -76,11 +77,12 @@ def run(args: argparse.Namespace) -> int:
                          f'machine: more only compete for the cores), got {args.workers}')
     window = min(args.window, args.duration)
     config = config_from_args(args)
-    from drill_twin.dynamics.simulator import SimulationDiverged
+    from drill_twin.integrator.simulator import SimulationDiverged
     from drill_twin.uncertainty.executors import make_executor
     from drill_twin.uncertainty.montecarlo import StudySpec, default_batch_size
     from drill_twin.uncertainty.study import run_study
     from drill_twin.uncertainty.study_io import summary, write_study
+    from drill_twin.viz.montecarlo_figures import plot_study
 
     try:
         spec = StudySpec(dispersion=args.delta, samples=args.samples, duration_s=args.duration,
@@ -107,7 +109,9 @@ def run(args: argparse.Namespace) -> int:
                      f'the mean model cannot be integrated: {error}') from None
     finally:
         executor.close()
-    write_study(result, args.out, figures=not args.no_figures)
+    write_study(result, args.out)
+    if not args.no_figures:
+        plot_study(result, Path(args.out))
     s = summary(result)
     cov = s['coefficient_of_variation']
     print(f'{s["completed_realizations"]} realizations (delta = {spec.dispersion:g}, seed '

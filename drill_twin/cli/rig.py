@@ -87,10 +87,10 @@ def run(args: argparse.Namespace) -> int:
     if args.germ_seed < 0:
         raise UsageError(f'--germ-seed: must be >= 0, got {args.germ_seed}')
     config, settings = split_settings(args)
-    from drill_twin.assimilation.rig import run_rig
+    from drill_twin.assimilation.rig_emulator import run_rig
     from drill_twin.cli.common import preflight_or_refuse
     from drill_twin.config.loader import config_to_dict
-    from drill_twin.twin.stepping import TwinStalled
+    from drill_twin.integrator.stepping import TwinStalled
 
     checked = preflight_or_refuse(config, args.overrides)
     germ = None

@@ -43,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
                    f'{config.output.record_interval_s:g} s ({records:.3g} records)', need)
     checked = preflight_or_refuse(config, args.overrides)
     from drill_twin.config.loader import config_to_dict
-    from drill_twin.dynamics.simulator import SimulationDiverged
+    from drill_twin.integrator.simulator import SimulationDiverged
     from drill_twin.simulation.results_io import write_results
     from drill_twin.simulation.run import run_simulation
     from drill_twin.simulation.summary import summarize
@@ -63,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
     if args.summary:
         Path(args.summary).write_text(json.dumps(summary, indent=2) + '\n')
     if args.plot:
-        from drill_twin.plotting.figures import plot_run
+        from drill_twin.viz.figures import plot_run
         clearance = (config.borehole.diameter_m - config.sections[0].outer_diameter_m) / 2
         plot_run(result, args.plot, window, clearance_m=clearance)
     print(_text(summary, args.duration, window))

@@ -143,8 +143,8 @@ def run(args: argparse.Namespace) -> int:
         if args.web and not args.view:
             raise UsageError('--web: only with --view (the live viewer)')
         if args.view and not args.web:
-            from drill_twin.recording.live_view import NO_DISPLAY_HINT
-            from drill_twin.recording.rerun_view import has_display
+            from drill_twin.viz.live_view import NO_DISPLAY_HINT
+            from drill_twin.viz.rerun_view import has_display
             if not has_display():
                 raise UsageError(NO_DISPLAY_HINT)
         checked_start(ros)

@@ -7,7 +7,7 @@ from pathlib import Path
 import sys
 
 from drill_twin.cli.common import EXIT_USAGE, UsageError
-from drill_twin.recording.rerun_layout import TABS
+from drill_twin.viz.rerun_layout import TABS
 
 
 def add_parser(subparsers) -> None:
@@ -36,7 +36,7 @@ def add_parser(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from drill_twin.recording import rerun_view
+    from drill_twin.viz import rerun_view
 
     for port, option in ((args.port, '--port'), (args.web_port, '--web-port')):
         if not 0 < port < 65536:

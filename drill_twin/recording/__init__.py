@@ -15,7 +15,7 @@ Modules (none imports rclpy or rerun at import time):
 - :mod:`~drill_twin.recording.reader` - reading logs back (also cut ones);
 - :mod:`~drill_twin.recording.recovery` - making a cut file whole;
 - :mod:`~drill_twin.recording.resimulate` - re-running a logged twin and comparing;
-- :mod:`~drill_twin.recording.rerun_view` - rerun blueprint, ``.rrd`` conversion, viewer.
+- :mod:`~drill_twin.viz.rerun_view` - rerun blueprint, ``.rrd`` conversion, viewer.
 """
 
 from drill_twin.recording.bag_writer import BagWriter

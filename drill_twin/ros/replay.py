@@ -45,7 +45,7 @@ def replay(path, rate: float, ros_args: list[str], delay_s: float = 1.0, report=
     Publishing starts after ``delay_s`` seconds, for subscribers to discover the publishers
     (FastDDS: 1-2 s).
     """
-    from drill_twin.recording.rerun_view import stations_from_topics
+    from drill_twin.viz.rerun_view import stations_from_topics
 
     rclpy.init(args=ros_args)
     node = None

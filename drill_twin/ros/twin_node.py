@@ -161,9 +161,9 @@ class TwinNode(Node):
     """Why the log stopped or could not be opened (None while it runs, or without a log)."""
     _log_stopped = False
     live_view = None
-    """A :class:`~drill_twin.recording.live_view.LiveView` streaming to rerun, or None."""
+    """A :class:`~drill_twin.viz.live_view.LiveView` streaming to rerun, or None."""
     status = None
-    """A :class:`~drill_twin.cli.console.StatusPrinter` for a terminal, or None."""
+    """A :class:`~drill_twin.viz.console.StatusPrinter` for a terminal, or None."""
 
     def __init__(self, engine: TwinEngine, params: TwinParameters, **kwargs):
         self.engine = engine
@@ -863,7 +863,7 @@ def _run(ros_args: list[str], view: str | None = None, console: bool = False) ->
         executor = SingleThreadedExecutor()
         node = create_twin_node(params)
         if view:
-            from drill_twin.recording.live_view import LiveView
+            from drill_twin.viz.live_view import LiveView
             settings = node.engine.ensemble.assimilation
             node.live_view = LiveView(node.stations_m, node.config,
                                       assimilation=node.engine.assimilating,
@@ -873,7 +873,7 @@ def _run(ros_args: list[str], view: str | None = None, console: bool = False) ->
                                       else settings.estimated_bias_channels())
             node.live_view.spawn_viewer(web=(view == 'web'))
         if console:
-            from drill_twin.cli.console import StatusPrinter
+            from drill_twin.viz.console import StatusPrinter
             node.status = StatusPrinter(sys.stderr)
         executor.add_node(node)
         executor.spin_until_future_complete(node.done)

@@ -5,9 +5,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from drill_twin.dynamics.observed_bit import (FLAG_RECORDS, FLOAT_RECORDS, MAX_CONTACT_FORCE,
-                                              STATION_RECORDS, ObservedArrays)
-from drill_twin.dynamics.simulator import Observation
+from drill_twin.integrator.observed_bit import (FLAG_RECORDS, FLOAT_RECORDS, MAX_CONTACT_FORCE,
+                                                STATION_RECORDS, ObservedArrays)
+from drill_twin.integrator.simulator import Observation
 
 # Per-member channels: name -> (Observation attribute, unit) (arrays (m, n_t)).
 BIT_CHANNELS = {
@@ -92,7 +92,7 @@ class History:
 
     Recorded time first (a sample is one contiguous row of each buffer: a quarter of the cost
     of a strided column), handed out time last by :meth:`result`. The buffers are an
-    :class:`~drill_twin.dynamics.observed_bit.ObservedArrays` with a record per sample:
+    :class:`~drill_twin.integrator.observed_bit.ObservedArrays` with a record per sample:
     :meth:`record_simulator` has the simulator observe straight into them (one compiled
     call), :meth:`record` copies an :class:`Observation` there.
     """

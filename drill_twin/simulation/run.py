@@ -8,8 +8,8 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from drill_twin.config.schema import DrillStringConfig
-from drill_twin.dynamics.reduced_system import ReducedSystem
-from drill_twin.dynamics.simulator import Simulator
+from drill_twin.model.reduced_system import ReducedSystem
+from drill_twin.integrator.simulator import Simulator
 from drill_twin.simulation.history import History, SimulationResult
 
 Progress = Callable[[float, float], None]
@@ -27,7 +27,7 @@ def run_simulation(config: DrillStringConfig, duration_s: float, *, members: int
     more in synchronisation than they save (measured on this 2-core machine: a 64 x 166
     by 166 x 166 product took 1.3 ms with two busy threads, 0.11 ms with one).
 
-    Raises :class:`~drill_twin.dynamics.simulator.SimulationDiverged` with the time of the
+    Raises :class:`~drill_twin.integrator.simulator.SimulationDiverged` with the time of the
     step that failed.
     """
     with threadpool_limits(limits=1, user_api='blas'):

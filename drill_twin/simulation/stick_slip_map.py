@@ -4,13 +4,13 @@ The stick-slip map: the mean model over a grid of top-drive speed x weight on bi
 Every point is an independent run of the mean model (one task for an executor of
 :mod:`drill_twin.uncertainty.executors`) at its top-drive speed Omega and its static weight on
 bit WOB (> 0 in compression), set through the hook load H = W - WOB (W the string's weight
-as the model counts it, :mod:`drill_twin.dynamics.steady_drilling`). A point starts either
+as the model counts it, :mod:`drill_twin.analysis.steady_drilling`). A point starts either
 from steady drilling at (Omega, WOB) with the bit speed perturbed by
 ``perturbation_rad_per_s`` (``start='steady'``, the default: a small kick that the linear
 stability analysis predicts will grow or decay), or from the configuration's own initial
 state (``start='configured'``: untwisted string, as ``drill-twin simulate``). The
 statistics are taken over the last ``window_s`` seconds; the linear stability of the
-point's steady state is computed alongside (:mod:`drill_twin.dynamics.linear_stability`).
+point's steady state is computed alongside (:mod:`drill_twin.analysis.linear_stability`).
 
 A point whose integration diverges is kept as a row of NaN statistics with ``failed = 1``
 and the error in ``error``. Points are returned in grid order (WOB-major: index =
@@ -32,12 +32,12 @@ from threadpoolctl import threadpool_limits
 
 from drill_twin.config.loader import build_config, config_to_dict
 from drill_twin.config.schema import DrillStringConfig
-from drill_twin.dynamics import kpi
-from drill_twin.dynamics.bit_rock import BitRockLaw
-from drill_twin.dynamics.linear_stability import AxialTorsionalLinearisation, stability_grid
-from drill_twin.dynamics.reduced_system import build_reduced_system
-from drill_twin.dynamics.simulator import SimulationDiverged, Simulator
-from drill_twin.dynamics.steady_drilling import hook_load_for, steady_coordinates, under_hook_load
+from drill_twin.analysis import kpi
+from drill_twin.model.bit_rock import BitRockLaw
+from drill_twin.analysis.linear_stability import AxialTorsionalLinearisation, stability_grid
+from drill_twin.model.reduced_system import build_reduced_system
+from drill_twin.integrator.simulator import SimulationDiverged, Simulator
+from drill_twin.analysis.steady_drilling import hook_load_for, steady_coordinates, under_hook_load
 from drill_twin.modal.reduced_basis import modal_analysis
 
 RAD_PER_S_TO_RPM = 60.0 / (2.0 * math.pi)

@@ -9,7 +9,7 @@ The files of a stick-slip map (docs/MAP.md describes them).
 - map.json: the grid, options, seed, wall time, workers and the failed points.
 - config.yaml: the complete model configuration (``drill-twin map --config config.yaml``
   with the same options repeats the map).
-- map.png: the heat map of the stick-slip severity (drill_twin.plotting.map_figure).
+- map.png: the heat map of the stick-slip severity (drawn by drill_twin.viz.map_figure).
 """
 from __future__ import annotations
 
@@ -37,7 +37,7 @@ def _text(name: str, value) -> str:
     return f'{float(value):.9g}'
 
 
-def write_map(result: MapResult, directory: str | Path, figure: bool = True) -> Path:
+def write_map(result: MapResult, directory: str | Path) -> Path:
     """Write every file of the map into ``directory`` (created if needed)."""
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
@@ -59,9 +59,6 @@ def write_map(result: MapResult, directory: str | Path, figure: bool = True) -> 
     (directory / 'map.json').write_text(json.dumps(summary(result), indent=2) + '\n')
     (directory / 'config.yaml').write_text(
         yaml.safe_dump(config_to_dict(result.config), sort_keys=False))
-    if figure:
-        from drill_twin.plotting.map_figure import plot_map
-        plot_map(result, directory / 'map.png')
     return directory
 
 

@@ -1,7 +1,7 @@
 """The JSON summary of a run over its stationary window."""
 from __future__ import annotations
 
-from drill_twin.dynamics import kpi
+from drill_twin.analysis import kpi
 from drill_twin.simulation.history import SimulationResult
 
 

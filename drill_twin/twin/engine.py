@@ -9,9 +9,10 @@ ensemble and collects the previous tick's ensemble, watches for borehole impacts
 lift-offs of the mean model, keeps drilling indicators over a moving window, and returns a
 :class:`TwinSnapshot`. A member that diverges is restarted from a safe state (its depth kept),
 the step is retried once, and the reset is reported; a member whose step breaks a physical
-bound (:mod:`~drill_twin.twin.guard`) is put back to its last good state and restarted there;
+bound (:mod:`~drill_twin.integrator.guard`) is put back to its last good state and restarted there;
 nothing from a failed or implausible step is returned. Commands are accepted only inside the
-range the model can represent (:mod:`~drill_twin.twin.envelope`), within the operator's limits.
+range the model can represent (:mod:`~drill_twin.integrator.envelope`), within the
+operator's limits.
 A configuration whose initial state already breaks a bound is refused (ConfigError).
 If the mean model keeps failing even from the safe state the engine raises TwinStalled rather
 than let the twin's clock stand still; an ensemble worker that cannot start is replaced by an
@@ -32,16 +33,16 @@ from drill_twin.assimilation.bounds import interval
 from drill_twin.assimilation.sequential import Sample, sample_problem
 from drill_twin.config import ConfigError
 from drill_twin.config.schema import DrillStringConfig
-from drill_twin.dynamics import kpi
-from drill_twin.dynamics import rig
-from drill_twin.dynamics.simulator import Observation, Simulator
+from drill_twin.analysis import kpi
+from drill_twin.rig import drives as rig
+from drill_twin.integrator.simulator import Observation, Simulator
 from drill_twin.twin.ensemble import (BIT_FIELDS, EnsembleFailed, EnsembleResult,
                                       EnsembleSettings, LocalEnsemble, measurement_refused,
                                       open_ensemble, start_worker)
-from drill_twin.twin.envelope import StringEnvelope
-from drill_twin.twin.stepping import (MAX_CONSECUTIVE_FAILURES, GuardedSimulator, TwinEvent,
-                                      TwinStalled)
-from drill_twin.twin.surface import SurfaceReadings, surface_readings
+from drill_twin.integrator.envelope import StringEnvelope
+from drill_twin.integrator.stepping import (MAX_CONSECUTIVE_FAILURES, GuardedSimulator, TwinEvent,
+                                            TwinStalled)
+from drill_twin.rig.surface import SurfaceReadings, surface_readings
 
 __all__ = ['BitState', 'CommandLimits', 'CommandRejected', 'EnsembleSettings', 'TwinEngine',
            'TwinEvent', 'TwinSnapshot', 'TwinStalled', 'MAX_CONSECUTIVE_FAILURES']
@@ -248,7 +249,7 @@ class TwinEngine:
 
         Accepted inside the operator's limits and the range the model can represent (the
         string's weight minus the largest WOB up to the weight plus the drag of a string
-        rising at block speed, :class:`~drill_twin.twin.envelope.StringEnvelope`).
+        rising at block speed, :class:`~drill_twin.integrator.envelope.StringEnvelope`).
         """
         self._check('hook load', newton, self.limits.hook_load_min_n,
                     self.limits.hook_load_max_n, 'N', self._hook_load_reason)
@@ -310,7 +311,7 @@ class TwinEngine:
 
     def set_block_velocity(self, m_per_s: float) -> None:
         """Set the block velocity (m/s, down > 0) block_velocity mode follows."""
-        from drill_twin.twin.envelope import PLAUSIBLE_BLOCK_SPEED_M_PER_S as fastest
+        from drill_twin.integrator.envelope import PLAUSIBLE_BLOCK_SPEED_M_PER_S as fastest
         self._check('block velocity', m_per_s, -fastest, fastest, 'm/s')
         self._block_velocity = float(m_per_s)
         if (drawworks := rig.drawworks_of(self.simulator)) is not None:

@@ -42,11 +42,11 @@ from drill_twin.assimilation.sequential import AnalysisRecord, Sample, Sequentia
 from drill_twin.assimilation.settings import AssimilationConfig
 from drill_twin.assimilation.state import law_scales_for_members
 from drill_twin.config.schema import DrillStringConfig
-from drill_twin.dynamics import rig
-from drill_twin.dynamics.drawworks import FollowedBlock
-from drill_twin.dynamics.simulator import Simulator
-from drill_twin.dynamics.top_drive import FollowedTopSpeed
-from drill_twin.twin.stepping import GuardedSimulator, TwinEvent
+from drill_twin.rig import drives as rig
+from drill_twin.rig.drawworks import FollowedBlock
+from drill_twin.integrator.simulator import Simulator
+from drill_twin.rig.top_drive import FollowedTopSpeed
+from drill_twin.integrator.stepping import GuardedSimulator, TwinEvent
 from drill_twin.uncertainty.executors import SINGLE_THREADED_BLAS
 from drill_twin.uncertainty.germ import germs_for_realizations, validate_dispersion
 
@@ -198,7 +198,7 @@ class LocalEnsemble:
         top_speeds_rad_per_s: the top speed at the end of each step, shape (steps,);
         block: None (every member under ``hook_load_n``, N), or the rig's block as (positions
         m, velocities m/s) at the end of each step, shapes (steps,): each member's line then
-        hangs from it (:class:`~drill_twin.dynamics.drawworks.FollowedBlock`); samples: the
+        hangs from it (:class:`~drill_twin.rig.drawworks.FollowedBlock`); samples: the
         rig's measurement samples received since the last tick (for the ensemble filter).
         """
         self._request = (steps, top_speeds_rad_per_s, hook_load_n, block, tuple(samples))

@@ -28,8 +28,8 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from drill_twin.config.loader import build_config
-from drill_twin.dynamics.reduced_system import build_reduced_system
-from drill_twin.dynamics.simulator import SimulationDiverged, Simulator
+from drill_twin.model.reduced_system import build_reduced_system
+from drill_twin.integrator.simulator import SimulationDiverged, Simulator
 from drill_twin.modal.reduced_basis import modal_analysis
 from drill_twin.uncertainty.germ import germs_for_realizations, validate_dispersion
 

@@ -60,7 +60,7 @@ def summary(result: StudyResult) -> dict:
     }
 
 
-def write_study(result: StudyResult, directory: str | Path, figures: bool = True) -> Path:
+def write_study(result: StudyResult, directory: str | Path) -> Path:
     """Write every file of the study into ``directory`` (created if needed)."""
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
@@ -90,7 +90,4 @@ def write_study(result: StudyResult, directory: str | Path, figures: bool = True
     np.savez_compressed(directory / 'realizations.npz', index=result.indices,
                         time_s=result.time_s,
                         **{q: result.realizations[q].astype(np.float32) for q in QUANTITIES})
-    if figures:
-        from drill_twin.plotting.montecarlo_figures import plot_study
-        plot_study(result, directory)
     return directory

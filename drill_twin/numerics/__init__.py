@@ -1,0 +1,1 @@
+"""The numba plumbing the compiled kernels share: compilation, padded rows, records, recycling."""

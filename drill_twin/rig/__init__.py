@@ -1,0 +1,1 @@
+"""The rig's machines: top drive and its controllers, drawworks, surface readings."""

@@ -1,0 +1,52 @@
+"""
+What a rig's surface sensors read from the mean model, in SI (issue 13).
+
+The top's speed and the string's torque at the top (a torque sub), the hook load (the
+drawworks' line pull when the block is driven, the hook force otherwise), the block position,
+the bit and hole depths, the ROP (the hole's deepening rate) and the surface WOB a rig
+computes, off-bottom hook load minus hook load (the off-bottom hook load being the string's
+weight as the model counts it, :class:`~drill_twin.integrator.envelope.StringEnvelope`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from drill_twin.rig.drawworks import line_hook_load_n
+from drill_twin.rig.drives import drawworks_of
+
+
+@dataclass(frozen=True)
+class SurfaceReadings:
+    """
+    The surface readings (SI).
+
+    speed (rad/s), torque (N m), hook load (N), block position (m, down > 0 from the start),
+    bit and hole depth (m), ROP (m/s), surface WOB (N, compression > 0).
+    """
+
+    speed_rad_per_s: float
+    torque_nm: float
+    hook_load_n: float
+    block_position_m: float
+    bit_depth_m: float
+    hole_depth_m: float
+    rop_m_per_s: float
+    weight_on_bit_n: float
+
+
+def surface_readings(simulator, observation, string_weight_n: float) -> SurfaceReadings:
+    """Return the readings of member 0 of ``simulator`` at ``observation`` (its latest)."""
+    drawworks = drawworks_of(simulator)
+    if drawworks is None:
+        hook = float(observation.hook_load_n)
+        block = float(observation.hook_position_m[0])
+    else:
+        hook = line_hook_load_n(drawworks)
+        block = float(drawworks.block_position_m)
+    return SurfaceReadings(
+        speed_rad_per_s=float(observation.top_speed_rad_per_s),
+        torque_nm=float(observation.top_torque_nm[0]), hook_load_n=hook,
+        block_position_m=block, bit_depth_m=float(observation.depth_m[0]),
+        hole_depth_m=float(observation.hole_depth_m[0]),
+        rop_m_per_s=float(observation.rop_m_per_s[0]),
+        weight_on_bit_n=float(string_weight_n) - hook)

@@ -1,0 +1,1 @@
+"""Looking at results: figures, the rerun layout and viewer, the live view, the console."""
