@@ -72,7 +72,7 @@ from drill_twin.model.bottom_hole_pattern import LobedBottom
 from drill_twin.model.contact import ContactForces
 from drill_twin.model.forces import ForceEvaluation, Kinematics, NonlinearForces
 from drill_twin.integrator.newmark_kernel import (BETA, GAMMA, VELOCITY_SCALE,  # noqa
-                                                 VERIFY_EVERY)
+                                                  VERIFY_EVERY)
 from drill_twin.numerics.records import maker
 from drill_twin.numerics.recycled import RecycledArrays
 from drill_twin.integrator.step_operands import StepOperands, make_step_operands
