@@ -8,7 +8,7 @@ starts load it in milliseconds.
 
 Where. numba checks a cached kernel against its own source file only, not against the
 kernels it calls from other modules. The cache therefore lives in a folder named after a
-hash of every kernel-defining module of this package (``kernels-<hash>``): editing any of
+hash of every kernel-defining module of the package (``kernels-<hash>``): editing any of
 them starts a fresh cache. Inside it a kernel is found by its module's name, its line and its
 source file's content, not by the file's path (numba's own locators add a folder per source
 path): a second checkout or a new virtual environment with the same kernels loads them instead
@@ -60,13 +60,20 @@ KEPT_CACHES = 6
 """Folders of earlier kernel sources kept beside the current one (module docstring)."""
 
 
+def kernel_modules() -> list[Path]:
+    """This module and every module of the package that defines kernels, in a fixed order."""
+    package = Path(__file__).resolve().parents[1]
+    return [path for path in sorted(package.rglob('*.py'))
+            if path.resolve() == Path(__file__).resolve()
+            or any(marker in path.read_bytes() for marker in _MARKERS)]
+
+
 def _source_hash() -> str:
-    """Hash of this module and of every module beside it that defines kernels."""
+    """Hash of :func:`kernel_modules`' names (relative to the package) and contents."""
     digest = hashlib.sha256()
-    for path in sorted(Path(__file__).parent.glob('*.py')):
-        text = path.read_bytes()
-        if path.name == Path(__file__).name or any(marker in text for marker in _MARKERS):
-            digest.update(path.name.encode() + b'\0' + text)
+    package = Path(__file__).resolve().parents[1]
+    for path in kernel_modules():
+        digest.update(path.relative_to(package).as_posix().encode() + b'\0' + path.read_bytes())
     return digest.hexdigest()[:16]
 
 

@@ -71,3 +71,13 @@ def test_the_oldest_cache_folders_are_pruned(tmp_path):
     left = sorted(path.name for path in tmp_path.iterdir())
     kept = [folder.name for folder in folders[:compiled.KEPT_CACHES - 1]]
     assert left == sorted(kept + [recent_but_many.name, current.name])
+
+
+def test_the_cache_folder_follows_every_kernel_module_of_the_package():
+    """Kernels live in several packages: editing any of them must start a fresh cache."""
+    package = Path(compiled.__file__).resolve().parents[1]
+    expected = {path.relative_to(package).as_posix() for path in package.rglob('*.py')
+                if b'@kernel' in path.read_bytes() or b'@inline' in path.read_bytes()}
+    hashed = {path.relative_to(package).as_posix() for path in compiled.kernel_modules()}
+    assert {'model/forces.py', 'integrator/newmark_kernel.py', 'analysis/kpi.py'} <= expected
+    assert hashed == expected | {'numerics/compiled.py'}
