@@ -31,3 +31,21 @@ bench: $(STAMP)
 
 clean:
 	rm -rf $(VENV) build *.egg-info
+
+# The figures and tables of docs/results, each with a MANIFEST.json (docs/results/README.md).
+# `make results`: Table 1, the mean model and the map (a few minutes); the studies apart.
+.PHONY: results results-montecarlo results-lateral results-drives results-all
+results: $(STAMP)
+	$(BIN)/python scripts/make_results.py results
+
+results-montecarlo: $(STAMP)
+	$(BIN)/python scripts/make_results.py montecarlo
+
+results-lateral: $(STAMP)
+	$(BIN)/python scripts/make_results.py lateral
+
+results-drives: $(STAMP)
+	$(BIN)/python scripts/make_results.py drives
+
+results-all: $(STAMP)
+	$(BIN)/python scripts/make_results.py all
