@@ -4,10 +4,11 @@ from __future__ import annotations
 import argparse
 import os
 from pathlib import Path
+import subprocess
 import sys
 
 from drill_twin.cli.common import EXIT_USAGE, UsageError
-from drill_twin.viz.rerun_layout import TABS
+from drill_twin.viz.rerun_entities import TABS
 
 
 def add_parser(subparsers) -> None:
@@ -36,7 +37,7 @@ def add_parser(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from drill_twin.viz import rerun_view
+    from drill_twin.viz import rerun_view, run_columns
 
     for port, option in ((args.port, '--port'), (args.web_port, '--web-port')):
         if not 0 < port < 65536:
@@ -45,8 +46,8 @@ def run(args: argparse.Namespace) -> int:
         if not Path(item).exists():
             raise UsageError(f'{item}: no such file or directory')
     try:
-        files = rerun_view.log_files(args.log)
-    except rerun_view.LogNotFound as error:
+        files = run_columns.log_files(args.log)
+    except run_columns.LogNotFound as error:
         raise UsageError(str(error)) from None
     if not args.rrd and not args.web and not rerun_view.has_display():
         print(f'drill-twin: view: {rerun_view.NO_DISPLAY_HINT}', file=sys.stderr)
@@ -74,7 +75,5 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _start(rerun_view, rrd: os.PathLike, args: argparse.Namespace):
-    import subprocess
-
     return subprocess.Popen(rerun_view.viewer_command(rrd, web=True, port=args.port,
                                                       web_port=args.web_port))

@@ -5,8 +5,8 @@ The twin streamed to a rerun viewer while it runs, with the layout of the record
 each tick, keeps samples at most ``sample_rate_hz`` per second of twin time (contact-force
 profiles at most ``profile_rate_hz``; events all), and sends what it holds at most
 ``send_rate_hz`` times per second of wall time in column batches, through the same
-:mod:`~drill_twin.viz.rerun_layout` functions as ``drill-twin view``.  The viewer it
-spawns listens on 127.0.0.1 only.  rerun is imported when a LiveView is made.
+:mod:`~drill_twin.viz.rerun_series` functions as ``drill-twin view``.  The viewer it
+spawns listens on 127.0.0.1 only.
 """
 from __future__ import annotations
 
@@ -15,8 +15,14 @@ import time
 from typing import Callable, Sequence
 
 import numpy as np
+import rerun as rr
 
-from drill_twin.viz import rerun_layout as layout
+from drill_twin.config import load_config
+from drill_twin.viz import rerun_series as series
+from drill_twin.viz.rerun_blueprint import twin_blueprint
+from drill_twin.viz.rerun_entities import APPLICATION_ID, StringGeometry
+from drill_twin.viz.rerun_styles import log_styles
+from drill_twin.viz.rerun_view import viewer_command
 
 NO_DISPLAY_HINT = ('--view: no display (DISPLAY and WAYLAND_DISPLAY are unset): add --web to '
                    "serve rerun's web viewer on localhost, or look at the log afterwards with "
@@ -39,7 +45,7 @@ class LiveView:
         one.
     :param recording: a rerun ``RecordingStream`` to log to (default: a new one; connect it
         with :meth:`spawn_viewer` or :meth:`connect`, or give one that saves to a file).
-    :param active_tab: the tab shown first (index or name, see ``rerun_layout.TABS``).
+    :param active_tab: the tab shown first (index or name, see ``rerun_entities.TABS``).
     :param clock: wall clock (s) for the send rate (tests pass a fake one).
     :param assimilation: the twin assimilates: the ensemble tab shows the estimated germ.
     :param law: its filter estimates the law's coefficients too: the ensemble tab shows them.
@@ -51,19 +57,15 @@ class LiveView:
                  send_rate_hz: float = 4.0, active_tab: int | str = 0,
                  clock: Callable[[], float] = time.monotonic, assimilation: bool = False,
                  law: bool = False, bias_channels=()):
-        import rerun as rr
-
         if config is None:
-            from drill_twin.config import load_config
-
             config = load_config(None)
-        self.geometry = layout.StringGeometry.from_config(config, stations_m)
-        self.blueprint = layout.twin_blueprint(self.geometry, active_tab=active_tab,
-                                               follow=True, assimilation=assimilation,
-                                               law=law, bias_channels=bias_channels)
+        self.geometry = StringGeometry.from_config(config, stations_m)
+        self.blueprint = twin_blueprint(self.geometry, active_tab=active_tab, follow=True,
+                                        assimilation=assimilation, law=law,
+                                        bias_channels=bias_channels)
         self._bias_channels = tuple(bias_channels)
         self.recording = recording if recording is not None else rr.RecordingStream(
-            layout.APPLICATION_ID)
+            APPLICATION_ID)
         self.sample_period_s = 1.0 / sample_rate_hz
         self.profile_period_s = 1.0 / profile_rate_hz
         self.send_period_s = 1.0 / send_rate_hz
@@ -87,8 +89,6 @@ class LiveView:
 
         Returns the viewer process (left running when the twin stops).
         """
-        from drill_twin.viz.rerun_view import viewer_command
-
         self.viewer = subprocess.Popen(viewer_command(None, web=web, port=port,
                                                       web_port=web_port))
         self.connect(f'rerun+http://127.0.0.1:{port}/proxy')
@@ -106,7 +106,7 @@ class LiveView:
         Static data logged before ``save``/``connect`` did not all reach the viewer in
         rerun 0.41.
         """
-        layout.log_styles(self.recording, self.geometry)
+        log_styles(self.recording, self.geometry)
         self._styled = True
 
     # -- data --------------------------------------------------------------------------------
@@ -197,33 +197,33 @@ class LiveView:
         rec, geometry, rows = self.recording, self.geometry, self._rows
         if rows['bit']:
             bit = np.asarray(rows['bit'])
-            layout.send_bit(rec, bit[:, 0], bit[:, 1], bit[:, 2], bit[:, 5], bit[:, 3],
+            series.send_bit(rec, bit[:, 0], bit[:, 1], bit[:, 2], bit[:, 5], bit[:, 3],
                             bit[:, 6])
-            layout.send_ensemble_model(rec, bit[:, 0], bit[:, 2], bit[:, 3], bit[:, 5])
+            series.send_ensemble_model(rec, bit[:, 0], bit[:, 2], bit[:, 3], bit[:, 5])
         if rows['top']:
             top = np.asarray(rows['top'])
-            layout.send_top(rec, top[:, 0], top[:, 1], top[:, 2], top[:, 3])
+            series.send_top(rec, top[:, 0], top[:, 1], top[:, 2], top[:, 3])
         if rows['kpi']:
             kpi = np.asarray(rows['kpi'], dtype=float)
-            layout.send_kpis(rec, kpi[:, 0], kpi[:, 1], kpi[:, 2], kpi[:, 3])
+            series.send_kpis(rec, kpi[:, 0], kpi[:, 1], kpi[:, 2], kpi[:, 3])
         if rows['ensemble']:
             ens = np.asarray(rows['ensemble'])
-            layout.send_ensemble(rec, ens[:, 0], ens[:, 1:7], ens[:, 7:13], ens[:, 13:19])
+            series.send_ensemble(rec, ens[:, 0], ens[:, 1:7], ens[:, 7:13], ens[:, 13:19])
         if rows['germ']:
             germ = np.asarray(rows['germ'], dtype=float)
-            layout.send_germ(rec, germ[:, 0], germ[:, 1:4], germ[:, 4:7], germ[:, 7:10])
+            series.send_germ(rec, germ[:, 0], germ[:, 1:4], germ[:, 4:7], germ[:, 7:10])
         if rows['law']:
             law = np.asarray(rows['law'], dtype=float)
-            layout.send_law(rec, law[:, 0], law[:, 1:6], law[:, 6:11], law[:, 11:16])
+            series.send_law(rec, law[:, 0], law[:, 1:6], law[:, 6:11], law[:, 11:16])
         if rows['bias']:
             bias, b = np.asarray(rows['bias'], dtype=float), len(self._bias_channels)
-            layout.send_bias(rec, bias[:, 0], self._bias_channels, bias[:, 1:1 + b],
+            series.send_bias(rec, bias[:, 0], self._bias_channels, bias[:, 1:1 + b],
                              bias[:, 1 + b:1 + 2 * b], bias[:, 1 + 2 * b:1 + 3 * b])
         if rows['station']:
             station = np.asarray(rows['station'])
             for k in range(len(geometry.stations_m)):
                 v, w = station[:, 1 + 2 * k], station[:, 2 + 2 * k]
-                layout.send_station(rec, geometry, k, station[:, 0], v, w,
+                series.send_station(rec, geometry, k, station[:, 0], v, w,
                                     previous=self._previous_orbit[k])
                 self._previous_orbit[k] = (float(v[-1]), float(w[-1]))
         if rows['profile']:
@@ -235,26 +235,26 @@ class LiveView:
                 for k in range(radial.shape[1]):
                     radial[:, k] = np.interp(t, station[:, 0], np.hypot(
                         station[:, 1 + 2 * k], station[:, 2 + 2 * k]))
-            layout.send_profiles(rec, geometry, t, forces, radial)
+            series.send_profiles(rec, geometry, t, forces, radial)
         if rows['health']:
             health = np.asarray(rows['health'], dtype=float)
             keys = ('real_time_factor', 'tick_time_ms', 'tick_time_max_ms',
                     'iterations_per_step', 'ensemble_iterations_per_step', 'resets')
             values = {key: health[:, 1 + i] for i, key in enumerate(keys)
                       if np.isfinite(health[:, 1 + i]).any()}
-            layout.send_health(rec, health[:, 0], values)
+            series.send_health(rec, health[:, 0], values)
         if self._events:
-            layout.send_text(rec, 'diagnostics/events', [e[0] for e in self._events],
+            series.send_text(rec, 'diagnostics/events', [e[0] for e in self._events],
                              [e[1] for e in self._events], [e[2] for e in self._events])
         speed, hook = self._commands['speed'], self._commands['hook']
         if speed or hook:
-            layout.send_commands(rec, [c[0] for c in speed], [c[1] for c in speed],
+            series.send_commands(rec, [c[0] for c in speed], [c[1] for c in speed],
                                  [c[0] for c in hook], [c[1] for c in hook])
         self._clear()
 
     def log_line(self, time_s: float, text: str, level: str = 'info') -> None:
         """Show a line of the twin's own log (what goes to /rosout)."""
-        layout.send_text(self.recording, 'rosout', [float(time_s)], [text], [level])
+        series.send_text(self.recording, 'rosout', [float(time_s)], [text], [level])
 
     def close(self) -> None:
         """Send what is left and flush the recording (the viewer keeps running)."""

@@ -3,10 +3,13 @@ Looking at a twin log in rerun (0.41): the ``.rrd`` with the layout, and the vie
 
 :func:`save_rrd` converts a log (a ``.mcap`` file, a bag directory or a list of split files)
 into one self-contained ``.rrd``: native rerun data on the ``run time`` timeline with the
-twin's blueprint (:mod:`~drill_twin.viz.rerun_layout`, written by
+twin's blueprint (:mod:`~drill_twin.viz.rerun_blueprint`, written by
 :mod:`~drill_twin.viz.rerun_native`).  :func:`open_viewer` starts the native viewer on
-it, :func:`serve_web` rerun's web viewer; both listen on 127.0.0.1 only (rerun's default is
-0.0.0.0).  rerun itself is imported only by the functions that need it.
+it, or rerun's web viewer; both listen on 127.0.0.1 only (rerun's default is 0.0.0.0).
+
+The rerun SDK (a second to import) is loaded by :func:`save_rrd` alone, which imports
+:mod:`~drill_twin.viz.rerun_native` when called: the twin asks this module for a display and a
+viewer binary before it starts, and the replay for a log's stations.
 """
 from __future__ import annotations
 
@@ -18,9 +21,14 @@ import sys
 import tempfile
 from typing import Sequence
 
-from drill_twin.viz.rerun_layout import APPLICATION_ID, TABS, TIMELINE  # noqa: F401
-from drill_twin.viz.rerun_native import (LogNotFound, log_files,  # noqa: F401
-                                         stations_from_topics)
+from drill_twin.viz.rerun_entities import APPLICATION_ID
+from drill_twin.viz.run_columns import log_files
+from drill_twin.viz.run_columns import stations_from_topics  # noqa: F401 (ros.replay's)
+
+try:
+    import rerun_cli                  # the viewer binary shipped with the rerun-sdk wheel
+except ImportError:
+    rerun_cli = None
 
 LOCALHOST = '127.0.0.1'
 DEFAULT_GRPC_PORT = 9876
@@ -44,10 +52,11 @@ def save_rrd(source, rrd_path: str | os.PathLike, stations_m: Sequence[float] | 
 
     :param source: a ``.mcap`` file (also one cut short), a bag directory, or a list.
     :param stations_m: station depths (m); default: those of the log's topics.
-    :param active_tab: the tab shown first (index or name, see :data:`TABS`; None: the bit's,
-        or the ensemble's for an offline estimate).
+    :param active_tab: the tab shown first (index or name, see
+        :data:`~drill_twin.viz.rerun_entities.TABS`; None: the bit's, or the ensemble's for an
+        offline estimate).
     """
-    from drill_twin.viz.rerun_native import write_rrd
+    from drill_twin.viz.rerun_native import write_rrd       # rerun: see the module docstring
 
     return write_rrd(source, rrd_path, stations_m, active_tab=active_tab,
                      application_id=application_id)
@@ -61,14 +70,10 @@ def rerun_executable() -> str:
     it as a child, which outlives a terminated script), else next to this Python (a venv's
     ``bin/rerun``), else on PATH.
     """
-    try:
-        import rerun_cli
-
+    if rerun_cli is not None:
         binary = Path(rerun_cli.__file__).with_name('rerun')
         if binary.is_file() and os.access(binary, os.X_OK):
             return str(binary)
-    except ImportError:
-        pass
     beside = Path(sys.executable).with_name('rerun')
     if beside.is_file() and os.access(beside, os.X_OK):
         return str(beside)

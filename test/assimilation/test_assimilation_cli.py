@@ -9,9 +9,12 @@ import numpy as np
 import pytest
 
 from cli_output import assert_one_line
-from test_recording_rerun import rerun_env, rrd_chunks  # noqa: F401 (a fixture)
+import rerun_capture
+from rerun_capture import rrd_chunks
 from drill_twin.assimilation.measurements import read
 from drill_twin.assimilation.settings import load_assimilation
+
+rerun_env = rerun_capture.rerun_env        # a fixture, requested by name below
 
 ROOT = Path(__file__).resolve().parents[2]
 SMALL = ['--set', 'sections.drill_pipe.elements=8', '--set', 'sections.drill_collar.elements=4',
@@ -121,7 +124,7 @@ def test_assimilate_estimates_a_sensor_bias_when_asked(rig_log, tmp_path):
 
 
 def test_the_estimate_opens_in_rerun_with_its_bounds_the_truth_and_the_open_loop(
-        rig_log, tmp_path, rerun_env):  # noqa: F811
+        rig_log, tmp_path, rerun_env):
     """
     The estimate opens in rerun: ``drill-twin view EST.mcap --rrd`` (the ensemble tab).
 
@@ -145,7 +148,7 @@ def test_the_estimate_opens_in_rerun_with_its_bounds_the_truth_and_the_open_loop
     verbose = sp.run([rerun_executable(), 'rrd', 'print', '-vvv', str(rrd)], env=rerun_env,
                      capture_output=True, text=True, check=True, timeout=60).stdout
     assert 'truth (green), open loop (grey' in verbose
-    from drill_twin.viz.rerun_native import read_run
+    from drill_twin.viz.run_columns import read_run
     run = read_run([out])
     truth = run.array('truth', 2)
     np.testing.assert_allclose(truth[:3, 0], [0.05, 0.10, 0.15], atol=1e-9)

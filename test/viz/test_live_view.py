@@ -6,11 +6,15 @@ import subprocess
 import numpy as np
 import pytest
 
-from drill_twin.viz import rerun_layout as layout
+from drill_twin.viz import rerun_blueprint as blueprint
+from drill_twin.viz import rerun_entities as entities
 from drill_twin.viz.live_view import LiveView
 from drill_twin.viz.rerun_view import rerun_executable
 from snapshots import impact, snapshot
-from test_recording_rerun import Capture, rrd_chunks, rerun_env  # noqa: F401 (fixture)
+import rerun_capture
+from rerun_capture import Capture, rrd_chunks
+
+rerun_env = rerun_capture.rerun_env        # a fixture, requested by name below
 
 STATIONS_M = (700.0, 1590.0)
 
@@ -33,10 +37,10 @@ def run_view(view, clock, seconds: float, dt: float = 0.01, wall_per_tick: float
         view.update(snapshot(t, events=events))
 
 
-def test_live_view_logs_the_layout_entities(rerun_env, tmp_path):  # noqa: F811
+def test_live_view_logs_the_layout_entities(rerun_env, tmp_path):
     import rerun as rr
 
-    recording = rr.RecordingStream(layout.APPLICATION_ID)
+    recording = rr.RecordingStream(entities.APPLICATION_ID)
     clock = FakeClock()
     view = LiveView(STATIONS_M, recording=recording, clock=clock, active_tab='lateral')
     path = tmp_path / 'live.rrd'
@@ -158,7 +162,7 @@ def test_live_view_sends_every_analysis_of_a_twin_that_assimilates():
     assert np.allclose(np.ravel(rec.rows('ensemble/germ/g22/lower')[1]), 1.5)
 
     def views(assimilation, law=False):
-        return ' '.join(str(v.name) for v in layout._ensemble_tab(assimilation, law).contents)
+        return ' '.join(str(v.name) for v in blueprint._ensemble_tab(assimilation, law).contents)
     assert 'Estimated bit-rock germ' in views(True)
     assert 'Estimated bit-rock germ' not in views(False)
     assert 'Law factors a1..a5' in views(True, law=True)
@@ -211,8 +215,8 @@ def test_live_view_sends_the_estimated_sensor_bias_labelled_by_channel():
     assert np.allclose(times, [0.1, 0.2, 0.3])
     assert np.allclose(np.ravel(mean), 100.0 * times)
     assert np.allclose(np.ravel(rec.rows('ensemble/bias/top_torque/lower')[1]), -5.0)
-    titles = ' '.join(str(v.name) for v in layout._ensemble_tab(
+    titles = ' '.join(str(v.name) for v in blueprint._ensemble_tab(
         True, False, ('top_torque',)).contents)
     assert 'Estimated top_torque sensor bias (N m)' in titles
     assert 'sensor bias' not in ' '.join(str(v.name)
-                                         for v in layout._ensemble_tab(True).contents)
+                                         for v in blueprint._ensemble_tab(True).contents)

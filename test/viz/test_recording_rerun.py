@@ -1,8 +1,6 @@
 """The rerun views of a twin log: CDR decoding, units, band, orbits, .rrd, viewers on localhost."""
 import math
-import os
 from pathlib import Path
-import re
 import socket
 import subprocess
 import sys
@@ -14,37 +12,27 @@ import pytest
 
 from drill_twin import interface as itf
 from drill_twin.recording import cdr
-from drill_twin.viz import rerun_layout as layout
 from drill_twin.recording.mcap_log import McapLog
 from drill_twin.recording.message_types import import_message_class
 from drill_twin.recording.reader import iter_raw
-from drill_twin.viz.rerun_native import (LogNotFound, geometry_of, log_files, read_run,
-                                         stations_from_topics)
+from drill_twin.viz import rerun_blueprint as blueprint
+from drill_twin.viz import rerun_entities as entities
+from drill_twin.viz import rerun_series as series
+from drill_twin.viz import rerun_styles
+from drill_twin.viz.rerun_native import geometry_of
+from drill_twin.viz.run_columns import LogNotFound, log_files, read_run, stations_from_topics
 from drill_twin.viz.rerun_view import (has_display, LOCALHOST, NO_DISPLAY_HINT,
                                        open_viewer, rerun_executable, save_rrd,
                                        viewer_command)
+import rerun_capture
+from rerun_capture import Capture, rrd_chunks
 from synthetic import write_synthetic_log
 from drill_twin.recording.topics import twin_topics
 
+rerun_env = rerun_capture.rerun_env        # a fixture, requested by name below
+
 STATIONS_M = (600.0, 1200.0)
-CHUNK_LINE = re.compile(r'^Chunk\(\S+\) with \d+ rows \([^)]*\) - (\S+) - data columns: \[(.*)\]$')
 RPM = 60.0 / (2.0 * math.pi)
-
-
-@pytest.fixture(scope='module')
-def rerun_env(tmp_path_factory):
-    """Environment for the rerun CLI and SDK: analytics config kept out of $HOME."""
-    root = tmp_path_factory.mktemp('rerun_home')
-    overrides = {'XDG_CONFIG_HOME': str(root / 'config'), 'XDG_DATA_HOME': str(root / 'data'),
-                 'RMW_IMPLEMENTATION': 'rmw_fastrtps_cpp'}
-    saved = {key: os.environ.get(key) for key in overrides}
-    os.environ.update(overrides)
-    yield dict(os.environ)
-    for key, value in saved.items():
-        if value is None:
-            os.environ.pop(key, None)
-        else:
-            os.environ[key] = value
 
 
 @pytest.fixture(scope='module')
@@ -54,50 +42,10 @@ def log_path(tmp_path_factory):
     return path
 
 
-def rrd_chunks(rrd: Path, env: dict) -> dict[str, set[str]]:
-    """{entity path: data columns} of an .rrd, via ``rerun rrd print``."""
-    result = subprocess.run([rerun_executable(), 'rrd', 'print', str(rrd)], env=env,
-                            capture_output=True, text=True, check=True, timeout=60)
-    columns: dict[str, set[str]] = {}
-    for match in map(CHUNK_LINE.match, result.stdout.splitlines()):
-        if match:
-            columns.setdefault(match.group(1), set()).update(match.group(2).split())
-    return columns
-
-
-class Capture:
-    """A stand-in recording: keeps what the layout functions send, as plain numbers."""
-
-    def __init__(self):
-        self.sent: dict[str, list] = {}
-        self.static: dict[str, list] = {}
-
-    def send_columns(self, entity, indexes, columns):
-        (index,) = indexes
-        assert index.timeline_name() == layout.TIMELINE
-        times = np.asarray(index.as_arrow_array().cast('int64').to_pylist()) * 1e-9
-        values = {c.component_descriptor().component: c.as_arrow_array().to_pylist()
-                  for c in columns}
-        self.sent.setdefault(entity, []).append((times, values))
-
-    def log(self, entity, archetype, static=False):
-        assert static
-        self.static.setdefault(entity, []).append(archetype)
-
-    def flush(self):
-        pass
-
-    def rows(self, entity, component='Scalars:scalars'):
-        """Return (times, values) of an entity over all its sends."""
-        times = np.concatenate([t for t, _ in self.sent[entity]])
-        values = [v for _, batch in self.sent[entity] for v in batch[component]]
-        return times, values
-
-
 def geometry(stations=STATIONS_M):
     from drill_twin.config import load_config
 
-    return layout.StringGeometry.from_config(load_config(None), stations)
+    return entities.StringGeometry.from_config(load_config(None), stations)
 
 
 # -- CDR decoding, checked against rclpy's deserializer -----------------------------------------
@@ -156,10 +104,10 @@ def test_cdr_decoders_match_rclpy(log_path):
 def test_units_and_signs():
     rec = Capture()
     t = np.array([0.0, 0.5])
-    layout.send_bit(rec, t, [1600.0, 1600.1], [1e-3, 2e-3], [2 * math.pi, math.pi],
+    series.send_bit(rec, t, [1600.0, 1600.1], [1e-3, 2e-3], [2 * math.pi, math.pi],
                     [-1e5, -5e4], [-3e3, 0.0])
-    layout.send_top(rec, t, [5.0, 5.0], [2e3, 4e3], [1.2e6, 1.1e6])
-    layout.send_kpis(rec, t, [0.5, 0.7], [1e8, 2e8], [6.0, 7.0])
+    series.send_top(rec, t, [5.0, 5.0], [2e3, 4e3], [1.2e6, 1.1e6])
+    series.send_kpis(rec, t, [0.5, 0.7], [1e8, 2e8], [6.0, 7.0])
     times, speed = rec.rows('bit/speed')
     assert np.allclose(times, t)
     assert np.allclose(np.ravel(speed), [60.0, 30.0])                    # rpm
@@ -176,10 +124,10 @@ def test_band_fills_from_lower_to_upper():
     rec = Capture()
     mean = np.array([[0.0, 2e-3, -1e5, 0.0, 5.0, -3e3]] * 3)
     lower, upper = mean * 0.9, mean * 1.1
-    layout.send_ensemble(rec, [1.0, 2.0, 3.0], mean, lower, upper)
+    series.send_ensemble(rec, [1.0, 2.0, 3.0], mean, lower, upper)
     _, band = rec.rows('ensemble/speed/band')
     for row in band:
-        assert len(row) == layout.BAND_LINES
+        assert len(row) == entities.BAND_LINES
         assert np.all(np.diff(row) >= 0)
         assert row[0] == pytest.approx(0.9 * 5.0 * RPM) and row[-1] == pytest.approx(
             1.1 * 5.0 * RPM)
@@ -187,7 +135,7 @@ def test_band_fills_from_lower_to_upper():
     # the band's lines share one legend name: the legend shows one entry, no hidden series
     (styles,) = rec.static.get('ensemble/speed/band') or [None]
     assert styles is None                                  # styles come from log_styles
-    layout.log_styles(rec, geometry())
+    rerun_styles.log_styles(rec, geometry())
     (band_style,) = rec.static['ensemble/speed/band']
     assert set(band_style.names.as_arrow_array().to_pylist()) == {'95 % band'}
 
@@ -195,7 +143,7 @@ def test_band_fills_from_lower_to_upper():
 def test_the_estimated_germ_is_sent_entry_by_entry():
     rec = Capture()
     mean = np.array([[1.0, 0.1, 1.2], [0.9, 0.0, 1.1]])
-    layout.send_germ(rec, [1.0, 2.0], mean, mean - 0.1, mean + 0.2)
+    series.send_germ(rec, [1.0, 2.0], mean, mean - 0.1, mean + 0.2)
     for column, key in enumerate(('g11', 'g12', 'g22')):
         assert np.allclose(np.ravel(rec.rows(f'ensemble/germ/{key}/mean')[1]), mean[:, column])
         assert np.allclose(np.ravel(rec.rows(f'ensemble/germ/{key}/lower')[1]),
@@ -207,7 +155,7 @@ def test_the_estimated_germ_is_sent_entry_by_entry():
 def test_the_estimated_law_is_sent_factor_by_factor():
     rec = Capture()
     mean = np.array([[1.0, 0.9, 1.1, 1.2, 0.8], [1.1, 0.9, 1.0, 1.3, 0.7]])
-    layout.send_law(rec, [1.0, 2.0], mean, mean - 0.1, mean + 0.2)
+    series.send_law(rec, [1.0, 2.0], mean, mean - 0.1, mean + 0.2)
     for column, key in enumerate(('a1', 'a2', 'a3', 'a4', 'a5')):
         assert np.allclose(np.ravel(rec.rows(f'ensemble/law/{key}/mean')[1]), mean[:, column])
         assert np.allclose(np.ravel(rec.rows(f'ensemble/law/{key}/lower')[1]),
@@ -219,12 +167,12 @@ def test_the_estimated_law_is_sent_factor_by_factor():
 def test_orbit_segments_and_wall():
     g = geometry()
     assert g.station_clearance_m == pytest.approx((0.15 - 0.0635, 0.15 - 0.0635))
-    assert layout.StringGeometry.from_config(_config(), (1590.0,)).station_clearance_m == (
+    assert entities.StringGeometry.from_config(_config(), (1590.0,)).station_clearance_m == (
         pytest.approx(0.15 - 0.1143),)                     # a drill collar
     rec = Capture()
     v, w = np.array([0.01, 0.02, 0.0]), np.array([0.0, 0.01, -0.03])
-    layout.send_station(rec, g, 1, [0.0, 0.1, 0.2], v, w, previous=(0.005, 0.0))
-    entity = layout.station_entity(1200.0)
+    series.send_station(rec, g, 1, [0.0, 0.1, 0.2], v, w, previous=(0.005, 0.0))
+    entity = entities.station_entity(1200.0)
     _, strips = rec.rows(f'{entity}/orbit', 'LineStrips2D:strips')
     assert np.allclose(strips[0][0], [[5.0, 0.0], [10.0, 0.0]])           # mm, joined on
     assert np.allclose(strips[2][0], [[20.0, 10.0], [0.0, -30.0]])
@@ -234,7 +182,7 @@ def test_orbit_segments_and_wall():
     assert np.allclose(np.ravel(rec.rows(f'{entity}/radial')[1]),
                        [10.0, math.hypot(20, 10), 30.0])
     assert np.allclose(np.ravel(rec.rows(f'{entity}/clearance')[1]), 86.5)
-    layout.log_styles(rec, g)
+    rerun_styles.log_styles(rec, g)
     (wall,) = rec.static[f'{entity}/wall']
     assert np.allclose(wall.half_sizes.as_arrow_array().to_pylist(), [[150.0, 150.0]])
 
@@ -244,7 +192,7 @@ def test_profiles_along_the_depth():
     rec = Capture()
     forces = np.zeros((2, g.node_x_m.size))
     forces[1, 10] = 2500.0
-    layout.send_profiles(rec, g, [0.0, 0.1], forces, [[0.0, 0.0], [0.0865, 0.04325]])
+    series.send_profiles(rec, g, [0.0, 0.1], forces, [[0.0, 0.0], [0.0865, 0.04325]])
     _, chart = rec.rows('along/contact_force', 'BarChart:values')
     assert chart[1][0]['shape'] == [g.node_x_m.size]
     assert chart[1][0]['buffer'][10] == pytest.approx(2.5)                # kN
@@ -328,7 +276,7 @@ def test_save_rrd_is_self_contained_with_blueprint(log_path, rerun_env, tmp_path
     for text in ('run time', 'Orbit at 1200 m', 'Bit speed (rpm)', 'Surface torque (kN·m)',
                  'Estimated bit-rock germ', 'Law factors a1..a5',
                  'Estimated top_torque sensor bias (N m)',
-                 'Wall contact force (kN) vs depth (m)', layout.APPLICATION_ID):
+                 'Wall contact force (kN) vs depth (m)', entities.APPLICATION_ID):
         assert text in verbose, text
     assert 'message_log_time' not in verbose              # no wall-clock timeline
 
@@ -352,17 +300,17 @@ def test_empty_log_converts(rerun_env, tmp_path):
 
 
 def test_blueprint_variants(rerun_env, tmp_path):
-    assert layout.TABS == ('bit', 'driller', 'lateral', 'ensemble', 'diagnostics')
+    assert entities.TABS == ('bit', 'driller', 'lateral', 'ensemble', 'diagnostics')
     for i, stations in enumerate(((), (500.0,), (500.0, 1000.0, 1500.0))):
-        for tab in (layout.TABS[i], i + 2, layout.TAB_TITLES[layout.TABS[i]].upper()):
+        for tab in (entities.TABS[i], i + 2, entities.TAB_TITLES[entities.TABS[i]].upper()):
             path = tmp_path / f'layout_{i}_{tab}.rbl'
-            layout.twin_blueprint(geometry(stations), active_tab=tab).save(
-                layout.APPLICATION_ID, path)
+            blueprint.twin_blueprint(geometry(stations), active_tab=tab).save(
+                entities.APPLICATION_ID, path)
             assert path.stat().st_size > 0
-    assert layout.tab_index('Lateral motion') == 2
+    assert entities.tab_index('Lateral motion') == 2
     for bad in ('No such tab', 7, -1):
         with pytest.raises(ValueError):
-            layout.tab_index(bad)
+            entities.tab_index(bad)
 
 
 # -- viewers: localhost only, and no display ---------------------------------------------------
