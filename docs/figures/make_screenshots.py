@@ -32,8 +32,10 @@ def main(argv=None) -> int:
     parser.add_argument('--tabs', nargs='+', default=None, help='only these tabs')
     args = parser.parse_args(argv)
 
-    from drill_twin.viz import rerun_layout as layout
-    from drill_twin.viz.rerun_native import geometry_of, log_files, read_run
+    from drill_twin.viz.rerun_blueprint import twin_blueprint
+    from drill_twin.viz.rerun_entities import APPLICATION_ID, TABS
+    from drill_twin.viz.rerun_native import geometry_of
+    from drill_twin.viz.run_columns import log_files, read_run
     from drill_twin.viz.rerun_view import rerun_executable, save_rrd
 
     tool = shutil.which(args.tool) or args.tool
@@ -41,7 +43,7 @@ def main(argv=None) -> int:
         print(f'make_screenshots: no screenshot tool {args.tool!r} (--tool PATH)',
               file=sys.stderr)
         return 2
-    tabs = args.tabs or list(layout.TABS)
+    tabs = args.tabs or list(TABS)
     files = log_files(args.log)
     geometry = geometry_of(read_run(files))
     args.out.mkdir(parents=True, exist_ok=True)
@@ -51,8 +53,7 @@ def main(argv=None) -> int:
         rrd = save_rrd(files, Path(directory) / 'run.rrd')
         for tab in tabs:
             blueprint = Path(directory) / f'{tab}.rbl'
-            layout.twin_blueprint(geometry, active_tab=tab).save(layout.APPLICATION_ID,
-                                                                 blueprint)
+            twin_blueprint(geometry, active_tab=tab).save(APPLICATION_ID, blueprint)
             out = args.out / f'rerun_{tab}.png'
             subprocess.run([tool, str(rrd), str(blueprint), str(out)], env=env, check=True)
             print(out)
