@@ -106,17 +106,17 @@ def _send_ensemble(recording, run: RunColumns) -> None:
 
 def _send_estimate(recording, run: RunColumns) -> None:
     """Send an offline estimate's bit speed with its truth and open loop (EST.mcap), if any."""
-    series = {key: run.array(key, 2) for key in (*ESTIMATE_TOPICS.values(), 'truth')}
-    n = min(len(series[f'estimate/{b}']) for b in ('mean', 'lower', 'upper'))
+    rows = {key: run.array(key, 2) for key in (*ESTIMATE_TOPICS.values(), 'truth')}
+    n = min(len(rows[f'estimate/{b}']) for b in ('mean', 'lower', 'upper'))
     if n == 0:
         return
-    m = min(len(series[f'open_loop/{b}']) for b in ('mean', 'lower', 'upper'))
-    open_loop = ((series['open_loop/mean'][:m, 0],
-                  *(series[f'open_loop/{b}'][:m, 1] for b in ('mean', 'lower', 'upper')))
+    m = min(len(rows[f'open_loop/{b}']) for b in ('mean', 'lower', 'upper'))
+    open_loop = ((rows['open_loop/mean'][:m, 0],
+                  *(rows[f'open_loop/{b}'][:m, 1] for b in ('mean', 'lower', 'upper')))
                  if m else None)
-    truth = series['truth']
-    series.send_estimate(recording, series['estimate/mean'][:n, 0],
-                         *(series[f'estimate/{b}'][:n, 1] for b in ('mean', 'lower', 'upper')),
+    truth = rows['truth']
+    series.send_estimate(recording, rows['estimate/mean'][:n, 0],
+                         *(rows[f'estimate/{b}'][:n, 1] for b in ('mean', 'lower', 'upper')),
                          open_loop=open_loop,
                          truth=(truth[:, 0], truth[:, 1]) if len(truth) else None)
 

@@ -6,7 +6,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from drill_twin.viz import rerun_blueprint as blueprint
+from drill_twin.viz import rerun_blueprint
 from drill_twin.viz import rerun_entities as entities
 from drill_twin.viz.live_view import LiveView
 from drill_twin.viz.rerun_view import rerun_executable
@@ -162,7 +162,8 @@ def test_live_view_sends_every_analysis_of_a_twin_that_assimilates():
     assert np.allclose(np.ravel(rec.rows('ensemble/germ/g22/lower')[1]), 1.5)
 
     def views(assimilation, law=False):
-        return ' '.join(str(v.name) for v in blueprint._ensemble_tab(assimilation, law).contents)
+        tab = rerun_blueprint._ensemble_tab(assimilation, law)
+        return ' '.join(str(v.name) for v in tab.contents)
     assert 'Estimated bit-rock germ' in views(True)
     assert 'Estimated bit-rock germ' not in views(False)
     assert 'Law factors a1..a5' in views(True, law=True)
@@ -215,8 +216,8 @@ def test_live_view_sends_the_estimated_sensor_bias_labelled_by_channel():
     assert np.allclose(times, [0.1, 0.2, 0.3])
     assert np.allclose(np.ravel(mean), 100.0 * times)
     assert np.allclose(np.ravel(rec.rows('ensemble/bias/top_torque/lower')[1]), -5.0)
-    titles = ' '.join(str(v.name) for v in blueprint._ensemble_tab(
+    titles = ' '.join(str(v.name) for v in rerun_blueprint._ensemble_tab(
         True, False, ('top_torque',)).contents)
     assert 'Estimated top_torque sensor bias (N m)' in titles
     assert 'sensor bias' not in ' '.join(str(v.name)
-                                         for v in blueprint._ensemble_tab(True).contents)
+                                         for v in rerun_blueprint._ensemble_tab(True).contents)

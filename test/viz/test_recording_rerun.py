@@ -15,7 +15,7 @@ from drill_twin.recording import cdr
 from drill_twin.recording.mcap_log import McapLog
 from drill_twin.recording.message_types import import_message_class
 from drill_twin.recording.reader import iter_raw
-from drill_twin.viz import rerun_blueprint as blueprint
+from drill_twin.viz import rerun_blueprint
 from drill_twin.viz import rerun_entities as entities
 from drill_twin.viz import rerun_series as series
 from drill_twin.viz import rerun_styles
@@ -304,7 +304,7 @@ def test_blueprint_variants(rerun_env, tmp_path):
     for i, stations in enumerate(((), (500.0,), (500.0, 1000.0, 1500.0))):
         for tab in (entities.TABS[i], i + 2, entities.TAB_TITLES[entities.TABS[i]].upper()):
             path = tmp_path / f'layout_{i}_{tab}.rbl'
-            blueprint.twin_blueprint(geometry(stations), active_tab=tab).save(
+            rerun_blueprint.twin_blueprint(geometry(stations), active_tab=tab).save(
                 entities.APPLICATION_ID, path)
             assert path.stat().st_size > 0
     assert entities.tab_index('Lateral motion') == 2
