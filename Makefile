@@ -10,12 +10,13 @@ PIP := $(BIN)/python -m pip --disable-pip-version-check -q
 
 setup: $(STAMP)
 
-$(STAMP): setup.py setup.cfg package.xml
+$(STAMP): setup.py setup.cfg package.xml scripts/link_ament_files.py
 	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info[:2] == (3, 11) else \
 	  "drill_twin needs Python 3.11 (the ROS 2 Jazzy wheels on PyPI are built for it); set PYTHON=")'
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(PIP) install --upgrade pip
 	$(PIP) install -e '.[ros,test]'
+	$(BIN)/python scripts/link_ament_files.py $(VENV) --activate
 	$(BIN)/python -m drill_twin.cli.warm_up
 	@touch $(STAMP)
 

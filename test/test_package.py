@@ -6,6 +6,7 @@ import subprocess
 import sys
 import sysconfig
 import xml.etree.ElementTree as ET
+from pathlib import Path
 
 import pytest
 from conftest import REPO
@@ -140,3 +141,45 @@ def test_launch_file_is_installed_and_starts_the_twin(installed_prefix, monkeypa
     assert params_file == str(installed_prefix / 'share/drill_twin/config/twin.yaml')
     import yaml
     assert 'ros__parameters' in yaml.safe_load(open(params_file))[node['name']]
+
+
+def test_an_editable_install_is_an_ament_prefix(tmp_path):
+    """
+    ``make setup``'s editable install, made an ament prefix by scripts/link_ament_files.py.
+
+    In a fresh prefix: ament_index finds the package's share directory, its files are the
+    source tree's, and the ``ros2 run`` launcher runs with this Python.
+    """
+    prefix = tmp_path / 'prefix'
+    (prefix / 'bin').mkdir(parents=True)
+    (prefix / 'bin' / 'python').symlink_to(sys.executable)
+    (prefix / 'bin' / 'activate').write_text('VIRTUAL_ENV=somewhere\n')
+    subprocess.run([sys.executable, str(REPO / 'scripts/link_ament_files.py'), str(prefix),
+                    '--activate'], check=True, capture_output=True, timeout=60)
+    code = ('from ament_index_python.packages import get_package_share_directory as share\n'
+            'print(share("drill_twin"))\n')
+    found = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                           env=dict(os.environ, AMENT_PREFIX_PATH=str(prefix)), timeout=60)
+    assert found.stdout.strip() == str(prefix / 'share' / 'drill_twin'), found.stderr
+    share = prefix / 'share' / 'drill_twin'
+    for name in ('package.xml', 'config/twin.yaml', 'config/ritto2009.yaml',
+                 'launch/twin.launch.py'):
+        assert (share / name).resolve() == (REPO / name).resolve(), name
+    assert (prefix / 'share/ament_index/resource_index/packages/drill_twin').exists()
+    launcher = prefix / 'lib' / 'drill_twin' / 'twin'
+    assert os.access(launcher, os.X_OK)
+    assert launcher.read_text().splitlines()[0] == f'#!{prefix.resolve()}/bin/python'
+    usage = subprocess.run([sys.executable, str(launcher), '--help'], capture_output=True,
+                           text=True, timeout=120)
+    assert usage.returncode == 0 and usage.stdout.startswith('usage: drill-twin twin')
+    activate = (prefix / 'bin' / 'activate').read_text()
+    assert activate.count('export AMENT_PREFIX_PATH="$VIRTUAL_ENV') == 1
+
+
+def test_the_environment_of_make_setup_is_an_ament_prefix():
+    """The venv the tests run in (made by ``make setup``) holds the ament files."""
+    if not (Path(sys.prefix) / 'bin' / 'activate').is_file():
+        pytest.skip('not running in a virtual environment')
+    share = Path(sys.prefix) / 'share' / 'drill_twin'
+    assert (share / 'package.xml').exists(), 'run make setup (scripts/link_ament_files.py)'
+    assert (Path(sys.prefix) / 'lib' / 'drill_twin' / 'twin').exists()
