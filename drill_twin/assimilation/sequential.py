@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -104,6 +105,21 @@ class AnalysisRecord:
     hole_rate_predicted_m_per_s: float = math.nan
     """With ``hole_rate_window_s``: the block's slope over the window this analysis closed and
     the members' mean own slope before it (m/s; NaN: no window closed)."""
+
+
+class _Measurements(NamedTuple):
+    """What one analysis compares: m measured values and the N members' predictions of them."""
+
+    predicted: np.ndarray
+    """(N, m)."""
+    observed: np.ndarray
+    """(m,), SI, each channel's known bias removed."""
+    variance: np.ndarray
+    """(m,): the measurements' noise variances."""
+    motions: list
+    """The motion ('axial', 'torsional') each value informs."""
+    used: int
+    """How many samples the values come from."""
 
 
 def sample_problem(sample: Sample) -> str | None:
@@ -331,6 +347,7 @@ class SequentialFilter:
                 + weight * self._predicted[slots[k]])
 
     def _analyse_ready(self) -> AnalysisRecord | None:
+        """Analyse the samples (and hole-rate windows) the batch has reached; None: no analysis."""
         now = self.simulator.time_s
         ready = [s for s in self._pending if s.stamp_s <= now + 1e-9]
         rates = [] if self.hole_rate is None else self.hole_rate.due(
@@ -338,10 +355,47 @@ class SequentialFilter:
         if not ready and not rates:
             return None
         self._pending = [s for s in self._pending if s.stamp_s > now + 1e-9]
-        Y, y, variance, motions, used = [], [], [], [], 0
+        measured = self._measurements(ready, rates)
+        if measured is None:
+            return None
+        if self._increment_left > 0:          # the previous analysis's, not yet all added
+            self._add_increment(self._increment_left)
+        forecast = np.concatenate([self.state.extract(), self.channel_bias], axis=1)
+        skipped, unused = f'analysis at {now:.3f} s skipped', f'({measured.used} sample(s) unused)'
+        if not (np.all(np.isfinite(measured.predicted)) and np.all(np.isfinite(forecast))):
+            self._refuse(f'{skipped}: the members\' predictions or state are not finite {unused}')
+            return None
+        try:
+            result, local = self._transforms(measured)
+        except (np.linalg.LinAlgError, ValueError) as error:
+            self._refuse(f'{skipped}: {error} {unused}')
+            return None
+        analysed = self._analysed(forecast, result, local)
+        if not np.all(np.isfinite(analysed)):
+            self._refuse(f'{skipped}: it is not finite {unused}')
+            return None
+        target = self._write(analysed, forecast)
+        if self.hole_rate is not None:
+            self.hole_rate.transform(result.transform if local is None else local['axial'])
+            self.hole_rate.after_write()
+        self.samples_used += measured.used
+        self._smooth_predictions(forecast, result, local)
+        self.analyses += 1
+        record = self._summary(now, result, target, rates[-1] if rates else None)
+        self.history.append(record)
+        return record
+
+    def _measurements(self, ready: list[Sample], rates: list) -> _Measurements | None:
+        """
+        Gather the measured values and the members' predictions of them.
+
+        The hole-rate windows due, then the ready samples' values with the predictions at their
+        stamps; a sample stamped before the buffer is refused. None: nothing to analyse.
+        """
+        predicted, observed, variance, motions, used = [], [], [], [], 0
         for rate in rates:
-            Y.append(rate.predicted)
-            y.append(rate.observed_m_per_s)
+            predicted.append(rate.predicted)
+            observed.append(rate.observed_m_per_s)
             variance.append(rate.variance)
             motions.append('axial')
         for sample in ready:
@@ -353,35 +407,32 @@ class SequentialFilter:
             for column, channel in enumerate(self.channels):
                 if channel not in sample.values:
                     continue
-                Y.append(prediction[:, column])
-                y.append(float(sample.values[channel]) - self.settings.channel(channel).bias)
+                predicted.append(prediction[:, column])
+                observed.append(float(sample.values[channel])
+                                - self.settings.channel(channel).bias)
                 variance.append(float(self.settings.channel(channel).std(
                     prediction[:, column].mean())) ** 2)
                 motions.append(MOTION_OF[channel])
             used += 1
-        if not y:
+        if not observed:
             return None
+        return _Measurements(np.stack(predicted, axis=1), np.asarray(observed),
+                             np.maximum(np.asarray(variance), 1e-12), motions, used)
+
+    def _transforms(self, measured: _Measurements):
+        """Return the analysis (:func:`.filter.analyse`) and, localised, each motion's own."""
         spec = self.settings.filter
-        Y = np.stack(Y, axis=1)
-        if self._increment_left > 0:          # the previous analysis's, not yet all added
-            self._add_increment(self._increment_left)
-        forecast = np.concatenate([self.state.extract(), self.channel_bias], axis=1)
-        if not (np.all(np.isfinite(Y)) and np.all(np.isfinite(forecast))):
-            self._refuse(f'analysis at {now:.3f} s skipped: the members\' predictions or '
-                         f'state are not finite ({used} sample(s) unused)')
-            return None
-        y, variance = np.asarray(y), np.maximum(np.asarray(variance), 1e-12)
-        local = None
-        try:
-            result = analyse(Y, y, variance, method=spec.method, inflation=spec.inflation,
-                             relaxation=spec.relaxation, rng=self.rng,
-                             parameter_inflation=spec.parameter_inflation,
-                             parameter_relaxation=spec.parameter_relaxation)
-            if spec.localisation == 'motion':
-                local = self._motion_transforms(Y, y, variance, motions)
-        except (np.linalg.LinAlgError, ValueError) as error:
-            self._refuse(f'analysis at {now:.3f} s skipped: {error} ({used} sample(s) unused)')
-            return None
+        args = (measured.predicted, measured.observed, measured.variance)
+        result = analyse(*args, method=spec.method, inflation=spec.inflation,
+                         relaxation=spec.relaxation, rng=self.rng,
+                         parameter_inflation=spec.parameter_inflation,
+                         parameter_relaxation=spec.parameter_relaxation)
+        local = (self._motion_transforms(*args, measured.motions)
+                 if spec.localisation == 'motion' else None)
+        return result, local
+
+    def _analysed(self, forecast: np.ndarray, result, local) -> np.ndarray:
+        """Return the analysed members (N, size + biases): the transforms, then the kicks."""
         analysed = result.apply(forecast)
         count, size = self.state.parameter_count, self.state.size
         parameters = slice(size - count, None)        # the law's, then the sensors' biases
@@ -390,6 +441,7 @@ class SequentialFilter:
         if local is not None:
             for motion, columns in self._motion_columns.items():
                 analysed[:, columns] = local[motion] @ forecast[:, columns]
+        spec = self.settings.filter
         sigma = spec.model_error_bit_speed_rad_per_s
         if sigma > 0:                         # additive inflation: centred, the mean unchanged
             kicks = sigma * self.rng.standard_normal(analysed.shape[0])
@@ -402,23 +454,32 @@ class SequentialFilter:
         if np.any(self._bias_walk_std > 0):   # the biases' walk
             kicks = self._bias_walk_std * self.rng.standard_normal(self.channel_bias.shape)
             analysed[:, size:] += kicks - kicks.mean(axis=0)
-        if not np.all(np.isfinite(analysed)):
-            self._refuse(f'analysis at {now:.3f} s skipped: it is not finite '
-                         f'({used} sample(s) unused)')
-            return None
-        target = analysed[:, :size].copy()   # what the record reports: the analysis itself
+        return analysed
+
+    def _write(self, analysed: np.ndarray, forecast: np.ndarray) -> np.ndarray:
+        """
+        Write the analysis to the members and the biases; return the analysed state (N, size).
+
+        With an increment the members take its first part only; the record reports the whole.
+        """
+        size = self.state.size
+        target = analysed[:, :size].copy()
         if self.increment_steps > 1:         # the first of its parts now, the rest step by step
             self._increment = (analysed[:, :size] - forecast[:, :size]) / self.increment_steps
             self._increment_left = self.increment_steps - 1
             analysed[:, :size] = forecast[:, :size] + self._increment
         self.state.write(analysed[:, :size])
         self.channel_bias = analysed[:, size:].copy()
-        if self.hole_rate is not None:
-            self.hole_rate.transform(result.transform if local is None else local['axial'])
-            self.hole_rate.after_write()
-        self.samples_used += used
-        # The smoother step: predictions still to be compared with late samples (a biased
-        # channel's: the model's part transformed as the state, plus the member's new bias).
+        return target
+
+    def _smooth_predictions(self, forecast: np.ndarray, result, local) -> None:
+        """
+        Apply the analysis to the predictions still to be compared with late samples.
+
+        The smoother step: a biased channel's prediction is the model's part, transformed as
+        the state, plus the member's new bias.
+        """
+        size = self.state.size
         for column, j in self._bias_column.items():
             self._predicted[:, :, column] -= forecast[:, size + j]
         if local is None:
@@ -429,10 +490,6 @@ class SequentialFilter:
                  for column, channel in enumerate(self.channels)], axis=2)
         for column, j in self._bias_column.items():
             self._predicted[:, :, column] += self.channel_bias[:, j]
-        self.analyses += 1
-        record = self._summary(now, result, target, rates[-1] if rates else None)
-        self.history.append(record)
-        return record
 
     def _motion_transforms(self, Y: np.ndarray, y: np.ndarray, variance: np.ndarray,
                            motions: list) -> dict[str, np.ndarray]:
