@@ -3,8 +3,12 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import fcntl
+import functools
 import os
+import random
 import sys
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -28,17 +32,60 @@ def pytest_collection_modifyitems(config, items):
             item.add_marker(pytest.mark.ros)
 
 
-def worker_domain_ids(low: int, high: int) -> range:
-    """
-    Return the ROS domain ids of ``range(low, high)`` this pytest process may use.
+DOMAIN_IDS = range(1, 101)
+"""ROS domain ids the tests may use: those whose DDS ports lie below Linux's ephemeral ports
+(domain 0, the default, is left to the user's own ROS programs)."""
+DOMAIN_PURPOSES = ('nodes', 'processes', 'replay', 'command line')
+"""What each id of a process's block is for: the twin and probe nodes in the test process,
+twins run as processes, replayed logs, ``drill-twin twin`` start-up. Tests of one process run
+one after another; each kind still gets an id of its own, so that what one leaves in the
+middleware (a transient-local /rosout, a process still stopping) is heard by no other."""
+DOMAIN_LOCKS = Path(tempfile.gettempdir()) / 'drill_twin_ros_domains'
+"""Folder of the lock files by which pytest processes claim blocks of domain ids."""
 
-    pytest-xdist runs test files side by side in worker processes (``make test``): worker k of
-    n takes every n-th id from low + k, so two workers never share a domain (a node in one
-    would hear the other's twin). Without xdist, the whole range.
+
+def claim_domain_block(size: int = len(DOMAIN_PURPOSES), ids: range = DOMAIN_IDS,
+                       folder: Path = DOMAIN_LOCKS):
     """
-    worker = os.environ.get('PYTEST_XDIST_WORKER', 'gw0')
-    count = int(os.environ.get('PYTEST_XDIST_WORKER_COUNT', '1'))
-    return range(low + int(worker.removeprefix('gw')), high, count)
+    Claim ``size`` consecutive ROS domain ids of ``ids`` that no other process holds.
+
+    Each block of ``ids`` has a lock file in ``folder``; the claim is an exclusive ``flock``
+    on it, held while the returned file stays open (for the process's life: the system lets
+    it go when the process ends, however it ends). Two pytest sessions, or two pytest-xdist
+    workers, thus never share a domain: a node in one would hear the other's twin. Blocks are
+    tried from a random one on. Return (the ids, the open lock file); raise RuntimeError if
+    every block is held.
+    """
+    folder.mkdir(parents=True, exist_ok=True)
+    with contextlib.suppress(OSError):          # another user's sessions lock here too
+        folder.chmod(0o1777)
+    blocks = [ids[k:k + size] for k in range(0, len(ids) - size + 1, size)]
+    first = random.SystemRandom().randrange(len(blocks))
+    for block in blocks[first:] + blocks[:first]:
+        path = folder / f'domains_{block[0]}-{block[-1]}.lock'
+        try:
+            descriptor = os.open(path, os.O_RDONLY | os.O_CREAT, 0o644)
+        except OSError:
+            continue
+        try:
+            fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:                         # held by another process
+            os.close(descriptor)
+            continue
+        return list(block), os.fdopen(descriptor)
+    raise RuntimeError(f'every block of {size} ROS domain ids in {ids.start}-{ids.stop - 1} '
+                       f'is claimed by another process (lock files in {folder})')
+
+
+@functools.cache
+def _session_domains():
+    """(ids, lock file) of this process, claimed once and held until it ends."""
+    return claim_domain_block()
+
+
+def session_domain_id(purpose: str) -> int:
+    """Return the ROS domain id of this pytest process for ``purpose`` (DOMAIN_PURPOSES)."""
+    return _session_domains()[0][DOMAIN_PURPOSES.index(purpose)]
 
 
 def ros_variables(folder: Path, domain_id: int) -> dict[str, str]:

@@ -386,6 +386,11 @@ def bias_messages(record):
         (itf.ASSIMILATION_BIAS_UPPER, record.bias_upper))]
 
 
+def analysis_messages(record):
+    """Return (topic, message) of an analysis's estimates: the germ, the law, the biases."""
+    return germ_messages(record) + law_messages(record) + bias_messages(record)
+
+
 def clock(time_ns: int) -> Clock:
     """rosgraph_msgs/Clock at ``time_ns`` (ns)."""
     return Clock(clock=stamp(time_ns))

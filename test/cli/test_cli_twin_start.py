@@ -8,7 +8,6 @@ honoured from the first instant (issue 9, items 5 and 6).
 from __future__ import annotations
 
 import os
-import random
 import signal
 import subprocess
 import sys
@@ -17,18 +16,17 @@ from pathlib import Path
 
 import pytest
 from cli_output import assert_one_line
-from conftest import ros_variables, worker_domain_ids
+from conftest import ros_variables, session_domain_id
 
 from drill_twin.ros.parameters import (ParameterError, check_parameter, model_overrides,
                                        parameters_from_ros_arguments, validate_ros_arguments)
 
-# Apart from the node tests' domains (1-101) and the replay's (120-200).
-DOMAIN_IDS = random.Random(os.getpid()).sample(worker_domain_ids(202, 232), 2)
+DOMAIN_ID = session_domain_id('command line')       # apart from the node tests' domain
 
 
 @pytest.fixture
 def env(tmp_path):
-    return dict(os.environ, **ros_variables(tmp_path, DOMAIN_IDS[0]))
+    return dict(os.environ, **ros_variables(tmp_path, DOMAIN_ID))
 
 
 def run_twin(*args, env, cwd):
@@ -137,7 +135,7 @@ def test_a_stop_signal_during_start_up_stops_the_twin_cleanly(tmp_path, number):
     catches SIGINT and SIGTERM before it has even loaded rclpy, and a signal then (0.1 s
     after the start at the earliest) stops it at once with status 0 and no traceback.
     """
-    env = dict(os.environ, **ros_variables(tmp_path, DOMAIN_IDS[1]))
+    env = dict(os.environ, **ros_variables(tmp_path, DOMAIN_ID))
 
     def as_background_job():
         signal.signal(signal.SIGINT, signal.SIG_IGN)

@@ -126,7 +126,7 @@ def test_the_twin_assimilates_the_rigs_surface_measurements(twin_factory, tmp_pa
     assert int(values['measurements_used']) > 0 and int(values['measurements_refused']) == 0
 
     # A message without its joint, and a NaN torque: refused with why; the twin goes on.
-    now = twin.node.twin_time_ns()
+    now = twin.node.clock.twin_time_ns()
     rig['/rig/top_drive'].publish(_reading(now, 'kelly', velocity=[1.0], effort=[1.0]))
     rig['/rig/top_drive'].publish(_reading(now, 'top_drive', velocity=[1.0],
                                            effort=[math.nan]))

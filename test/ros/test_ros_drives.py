@@ -261,7 +261,7 @@ def test_an_external_impedance_controller_matches_the_built_in_one(ros):  # noqa
     twin = create_twin_node(TwinParameters.from_values(
         {'fast': True, 'duration_s': LOOP_S, 'log_enabled': False, 'ensemble_members': 0,
          'model_overrides': overrides}))
-    zeta = characteristic_impedance(twin.config)
+    zeta = characteristic_impedance(twin.engine.config)
     assert pipe_impedance_nm_s_per_rad() == pytest.approx(zeta, rel=1e-12)
     controller = ImpedanceController(twin.engine.top_drive_speed_command, zeta,
                                      switch_drive=False, start_at_s=ON_AT_S)
@@ -274,10 +274,10 @@ def test_an_external_impedance_controller_matches_the_built_in_one(ros):  # noqa
         executor.add_node(node)
     try:
         ends = [controller.publishers_matched,
-                lambda: twin._outputs[itf.BIT_STATE].get_subscription_count() > 0,
-                lambda: twin._outputs[itf.SURFACE_TORQUE].get_subscription_count() > 0,
-                lambda: twin._outputs[itf.TOP_STATE].get_subscription_count() > 0,
-                lambda: twin._outputs[itf.cmd_applied_topic(itf.CMD_TOP_DRIVE_SPEED)]
+                lambda: twin.outputs.publishers[itf.BIT_STATE].get_subscription_count() > 0,
+                lambda: twin.outputs.publishers[itf.SURFACE_TORQUE].get_subscription_count() > 0,
+                lambda: twin.outputs.publishers[itf.TOP_STATE].get_subscription_count() > 0,
+                lambda: twin.outputs.publishers[itf.cmd_applied_topic(itf.CMD_TOP_DRIVE_SPEED)]
                 .get_subscription_count() > 0]
         deadline = time.monotonic() + WAIT_S
         while not all(end() for end in ends):

@@ -16,14 +16,13 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-import random
 import resource
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
-from conftest import REPO, ros_variables, worker_domain_ids
+from conftest import REPO, ros_variables, session_domain_id
 
 from drill_twin.recording import reader
 from drill_twin.recording.bag import listed_splits
@@ -82,7 +81,7 @@ executor.spin_until_future_complete(node.done, timeout_sec=150)
 for _ in range(40):                       # what the last tick published
     executor.spin_once(timeout_sec=0.05)
 heard.update(done=node.done.done(), result=node.done.result(), failed=node.failed,
-             log_error=node.log_error, log_is_none=node.log is None)
+             log_error=node.run_log.error, log_is_none=node.log is None)
 node.close()
 print(json.dumps(heard))
 status = 1 if node.failed else 0          # as drill_twin.ros.twin_node.run
@@ -97,7 +96,7 @@ sys.exit(status)
 @pytest.fixture(scope='module')
 def env(tmp_path_factory):
     folder = tmp_path_factory.mktemp('log_failure')
-    domain = random.SystemRandom().choice(worker_domain_ids(1, 102))
+    domain = session_domain_id('processes')
     return dict(os.environ, PYTHONPATH=str(REPO), **ros_variables(folder, domain))
 
 

@@ -6,16 +6,14 @@ over FastDDS, real MCAP files, the real rerun loader.
 from __future__ import annotations
 
 import os
-import random
 import subprocess
 import sys
 import time
 
 import pytest
-from conftest import REPO, ros_environment, worker_domain_ids
+from conftest import REPO, ros_environment, session_domain_id
 
-# Apart from the node tests' domains (1-101).
-DOMAIN_ID = random.Random(os.getpid()).choice(worker_domain_ids(120, 201))
+DOMAIN_ID = session_domain_id('replay')             # apart from the node tests' domain
 
 
 @pytest.fixture(scope='module')

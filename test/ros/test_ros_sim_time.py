@@ -34,7 +34,7 @@ def test_use_sim_time_follows_an_external_clock(twin_factory):  # noqa: F811
 
     twin = twin_factory(fast=False, use_sim_time=True, ensemble_members=0, health_rate_hz=5.0)
     node, probe = twin.node, twin.probe
-    assert itf.CLOCK not in node._outputs
+    assert itf.CLOCK not in node.outputs.publishers
     clock = probe.create_publisher(type(_clock(0)), itf.CLOCK,
                                    rclpy_qos_profile(itf.CLOCK_QOS))
     twin.spin_until(lambda: clock.get_subscription_count() >= 2,      # the twin's, rclpy's
@@ -46,7 +46,7 @@ def test_use_sim_time_follows_an_external_clock(twin_factory):  # noqa: F811
     assert 'waiting for the first /clock' in twin.statuses('drill_twin: twin health')[-1].message
 
     def follow(time_ns: int) -> None:
-        steps = (time_ns - EPOCH_NS) // node.dt_ns
+        steps = (time_ns - EPOCH_NS) // node.clock.dt_ns
 
         def reached():
             clock.publish(_clock(time_ns))                   # best effort: say it again
@@ -58,15 +58,15 @@ def test_use_sim_time_follows_an_external_clock(twin_factory):  # noqa: F811
             twin.executor.spin_once(timeout_sec=0.01)
         assert node.engine.step_index == steps
 
-    twin.spin_until(lambda: clock.publish(_clock(EPOCH_NS)) or node.pacer.started,
+    twin.spin_until(lambda: clock.publish(_clock(EPOCH_NS)) or node.clock.started,
                     'the first /clock')
-    assert node.epoch_ns == EPOCH_NS
+    assert node.clock.epoch_ns == EPOCH_NS
     follow(EPOCH_NS + 250_000_000)
     follow(EPOCH_NS + 400_000_000)
     stamps = np.array([stamp_ns(m) for m in twin.received[itf.BIT_STATE]])
     assert stamps[0] > EPOCH_NS and np.all(np.diff(stamps) > 0)
     assert stamps[-1] == EPOCH_NS + 400_000_000
-    assert np.all(stamps % node.dt_ns == 0)                  # whole steps from the epoch
+    assert np.all(stamps % node.clock.dt_ns == 0)                  # whole steps from the epoch
     publishers = {info.node_name for info in probe.get_publishers_info_by_topic(itf.CLOCK)}
     assert publishers == {'twin_probe'}
     assert node.log is not None
@@ -121,7 +121,7 @@ def test_tf_is_published_where_tf2_msgs_is_installed(twin_factory):  # noqa: F81
     twin = twin_factory(ensemble_members=0)
     node = twin.node
     if messages.TFMessage is None:
-        assert itf.TF not in node._outputs and itf.TF_STATIC not in node._outputs
+        assert not {itf.TF, itf.TF_STATIC} & set(node.outputs.publishers)
         twin.spin_until(lambda: twin.rosout(containing='no TF (tf2_msgs is not installed)'),
                         'the start line saying there is no TF')
         return

@@ -137,16 +137,16 @@ def test_commands_are_counted_dropped_and_superseded(twin_factory):  # noqa: F81
         twin.command(itf.CMD_HOOK_LOAD, hook - 2e3 - k)
     twin.spin_until(lambda: node.engine.hook_load_command == hook - 2e3 - (sent - 1),
                     'the last command')
-    received, dropped = node.engine.commands_received, node.commands_dropped
+    received, dropped = node.engine.commands_received, node.intake.dropped
     assert received + dropped == sent + 1 and dropped > 0
-    assert 0 < node.commands_superseded < received - 1
+    assert 0 < node.intake.superseded < received - 1
     warned = _health_after(twin, seen, lambda s: 'dropped' in s.message, 'the drops reported')
     assert warned.level == DiagnosticStatus.WARN
     final = _health_after(twin, seen, lambda s: _values(s)['commands_received'] == str(received),
                           'a report after the burst')
     values = _values(final)
     assert int(values['commands_dropped']) == dropped
-    assert int(values['commands_superseded']) == node.commands_superseded > 0
+    assert int(values['commands_superseded']) == node.intake.superseded > 0
 
 
 def test_the_stop_future_does_not_collect_callbacks(ros):  # noqa: F811

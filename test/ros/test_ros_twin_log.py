@@ -9,7 +9,6 @@ temporary directory. Waits are loops on conditions with generous deadlines.
 from __future__ import annotations
 
 import os
-import random
 import re
 import resource
 import signal
@@ -19,7 +18,7 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import REPO, ros_variables, worker_domain_ids
+from conftest import REPO, ros_variables, session_domain_id
 
 from drill_twin import interface as itf
 from drill_twin.recording import reader
@@ -34,8 +33,7 @@ DRILL_TWIN = str(Path(sys.executable).with_name('drill-twin'))
 @pytest.fixture(scope='module')
 def env(tmp_path_factory):
     folder = tmp_path_factory.mktemp('ros_processes')
-    domain = random.SystemRandom().choice(worker_domain_ids(1, 102))
-    return dict(os.environ, **ros_variables(folder, domain))
+    return dict(os.environ, **ros_variables(folder, session_domain_id('processes')))
 
 
 def run(command: list[str], env: dict, timeout_s: float = WAIT_S) -> subprocess.CompletedProcess:

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import math
 import os
-import random
 import subprocess
 import time
 from collections import defaultdict
@@ -19,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from conftest import ros_environment, worker_domain_ids
+from conftest import ros_environment, session_domain_id
 
 from drill_twin import interface as itf
 from drill_twin.ros.messages import every_tick_topic
@@ -27,7 +26,7 @@ from drill_twin.ros.messages import every_tick_topic
 STATIONS = ('x700m', 'x1590m')
 TICK_NS = 10_000_000                  # 100 Hz, one step of 10 ms
 WAIT_S = 120.0                        # deadline of any wait (a loaded 2-core machine is slow)
-DOMAIN_ID = random.SystemRandom().choice(worker_domain_ids(1, 102))
+DOMAIN_ID = session_domain_id('nodes')
 
 
 # -- fixtures and helpers ------------------------------------------------------------------------
@@ -87,7 +86,7 @@ class Twin:
         self.received = defaultdict(list)
         deep = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE)
         self._subscriptions = []
-        for topic, (type_, _) in self.node._published_topics().items():
+        for topic, (type_, _) in self.node.outputs.topics.items():
             if topics is not None and topic not in topics:
                 continue
             qos = deep
@@ -113,7 +112,7 @@ class Twin:
         Without spinning, so the twin has not ticked yet.
         """
         ends = ([s.get_publisher_count for s in self._subscriptions]
-                + [self.node._outputs[s.topic_name].get_subscription_count
+                + [self.node.outputs.publishers[s.topic_name].get_subscription_count
                    for s in self._subscriptions]
                 + [p.get_subscription_count for p in self.commands.values()])
         deadline = time.monotonic() + WAIT_S
@@ -212,12 +211,12 @@ def recorded(ros, tmp_path_factory):
     try:
         twin.spin_to(COMMAND_AT_S)
         hook_before = twin.received[itf.TOP_STATE][-1].effort[1]
-        sent_at_ns = twin.node.twin_time_ns()
+        sent_at_ns = twin.node.clock.twin_time_ns()
         twin.command(itf.CMD_TOP_DRIVE_SPEED, math.nan)                   # rejected
         twin.command(itf.CMD_TOP_DRIVE_SPEED, SPEED_COMMAND)
         twin.command(itf.CMD_HOOK_LOAD, hook_before + HOOK_STEP_N)
         twin.spin_until(lambda: twin.node.done.done(), 'duration_s')
-        final_ns = twin.node.twin_time_ns()
+        final_ns = twin.node.clock.twin_time_ns()
         # Drain what the last tick published (rosout's stop line included).
         twin.spin_until(lambda: stamp_ns(twin.received[itf.BIT_STATE][-1]) == final_ns
                         and any('stopping' in m.msg for m in twin.rosout()), 'the last tick')
@@ -226,7 +225,7 @@ def recorded(ros, tmp_path_factory):
         log_path = twin.node.log.path
         yield {'twin': twin, 'received': twin.received, 'log': log_path,
                'final_ns': final_ns, 'sent_at_ns': sent_at_ns, 'hook_before': hook_before,
-               'stations_m': list(twin.node.stations_m), 'config': twin.node.config}
+               'stations_m': list(twin.node.stations_m), 'config': twin.node.engine.config}
     finally:
         twin.close()
 
@@ -292,7 +291,7 @@ def test_the_twin_catches_up_with_the_wall_clock_after_a_stall(twin_factory):
 
     twin = twin_factory(fast=False, ensemble_members=0, health_rate_hz=10.0, time_step_s=0.01)
     node = twin.node
-    twin.spin_until(lambda: node.engine.time_s > 0.5 and node._steps_behind_wall_clock() <= 1,
+    twin.spin_until(lambda: node.engine.time_s > 0.5 and node.clock.steps_behind() <= 1,
                     'the twin in step with the wall clock')
     advance, steps = node.engine.advance, []
 
@@ -303,7 +302,7 @@ def test_the_twin_catches_up_with_the_wall_clock_after_a_stall(twin_factory):
         return advance(count)
 
     node.engine.advance = stalled_once
-    twin.spin_until(lambda: len(steps) > 1 and node._steps_behind_wall_clock() <= 1,
+    twin.spin_until(lambda: len(steps) > 1 and node.clock.steps_behind() <= 1,
                     'the twin caught up')
     assert steps[0] in (1, 2) and set(steps) <= {1, 2}     # 2: a tick already late
     # The ~30 steps missed, one a tick; a tick that is itself late on a loaded machine adds
@@ -472,9 +471,10 @@ def test_incompatible_qos_is_reported_by_the_subscriptions_not_the_publishers(tw
     twin = twin_factory()
     node = twin.node
     handlers = list(node.waitables)
-    assert node._outputs and all(not p.event_handlers for p in node._outputs.values())
-    assert all(len(s.event_handlers) == 2 for s in node._commands.values())
-    assert {id(h) for s in node._commands.values() for h in s.event_handlers} <= {
+    publishers = node.outputs.publishers.values()
+    assert publishers and all(not p.event_handlers for p in publishers)
+    assert all(len(s.event_handlers) == 2 for s in node.command_subscriptions.values())
+    assert {id(h) for s in node.command_subscriptions.values() for h in s.event_handlers} <= {
         id(h) for h in handlers}
     told = []
     twin.probe.create_subscription(
@@ -657,11 +657,11 @@ def test_log_is_complete_and_equal_to_what_was_heard(recorded):
             logged[item.channel.topic].append((item.log_time_ns, item.ros_msg))
     sent = {itf.CMD_TOP_DRIVE_SPEED, itf.CMD_HOOK_LOAD}
     never_echoed = {itf.cmd_applied_topic(c) for c in itf.COMMANDS if c not in sent}
-    expected_topics = (set(recorded['twin'].node._published_topics()) - never_echoed) | sent | {
+    expected_topics = (set(recorded['twin'].node.outputs.topics) - never_echoed) | sent | {
         itf.ROSOUT}
     assert set(logged) == expected_topics - {itf.CLOCK}     # the log time is the clock
     thinned = []
-    for topic in recorded['twin'].node._published_topics():
+    for topic in recorded['twin'].node.outputs.topics:
         if every_tick_topic(topic):
             thinned.append(topic)
         elif topic != itf.CLOCK:
@@ -784,7 +784,7 @@ def test_a_topic_nobody_hears_is_only_logged_until_a_subscriber_comes(twin_facto
     twin = twin_factory(topics=(itf.BIT_STATE,))
     station = itf.vibration_imu_topic(twin.node.stations_m[0])
     sent = defaultdict(int)
-    outputs = twin.node._outputs
+    outputs = twin.node.outputs.publishers
     assert outputs[station].get_subscription_count() == 0
     for topic in list(outputs):
         outputs[topic] = CountingPublisher(outputs[topic], sent, topic)
@@ -840,12 +840,12 @@ def test_a_signal_mid_tick_stops_the_sending_not_the_logging(ros, tmp_path):
     try:
         probe.create_subscription(Float64, itf.SURFACE_SPEED, lambda message: None, 10)
         deadline = time.monotonic() + WAIT_S
-        while node._outputs[itf.SURFACE_SPEED].get_subscription_count() == 0:
+        while node.outputs.publishers[itf.SURFACE_SPEED].get_subscription_count() == 0:
             assert time.monotonic() < deadline, 'DDS discovery did not complete'
             time.sleep(0.01)
         ros.shutdown(context=context)                    # the signal, in the middle of a tick
-        node._publish(itf.SURFACE_SPEED, Float64(data=4.25), 123_000_000)
-        node._publish(itf.SURFACE_TORQUE, Float64(data=-1.5), 123_000_000)
+        node.outputs.publish(itf.SURFACE_SPEED, Float64(data=4.25), 123_000_000)
+        node.outputs.publish(itf.SURFACE_TORQUE, Float64(data=-1.5), 123_000_000)
         assert node.log.open
     finally:
         node.close()
