@@ -111,10 +111,10 @@ def play(log, members: int, duration_s: float, assimilation: bool, settings,
                for p in sensor_out.values() if p.topic_name in used])
     while not all(end() for end in ends):
         executor.spin_once(timeout_sec=0.05)
-    while not node.pacer.started:             # /clock is best effort: the first may be lost
+    while not node.clock.started:             # /clock is best effort: the first may be lost
         clock.publish(Clock(clock=_stamp(EPOCH_NS)))
         executor.spin_once(timeout_sec=0.05)
-    assert node.epoch_ns == EPOCH_NS
+    assert node.clock.epoch_ns == EPOCH_NS
     start = time.perf_counter()
     t, index = 0.0, 0
     try:

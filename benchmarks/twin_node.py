@@ -119,11 +119,11 @@ def _statistics(node, warm_up_s: float, cpu: float) -> dict:
     simulated = np.array(node.tick_simulated)[keep]
     wall = starts[-1] - starts[0]
     periods = np.diff(starts) * 1e3
-    tick_ms = node.tick_s * 1e3
+    tick_ms = node.clock.tick_s * 1e3
     return {
         'ticks': len(starts), 'simulated_s': simulated[-1] - simulated[0], 'wall_s': wall,
         'rtf': (simulated[-1] - simulated[0]) / wall, 'tick_budget_ms': tick_ms,
-        'catch_up_ticks': int(np.sum(np.diff(simulated) > 1.5 * node.tick_s)),
+        'catch_up_ticks': int(np.sum(np.diff(simulated) > 1.5 * node.clock.tick_s)),
         'tick': _quantiles(ticks), 'model': _quantiles(model), 'period': _quantiles(periods),
         'late_ticks': int(np.sum(periods > 1.5 * tick_ms)), 'cpu': cpu,
         'jitter_p99_ms': float(np.percentile(np.abs(periods - tick_ms), 99)),
