@@ -41,7 +41,7 @@ def rig_log(tmp_path_factory):
 
 
 def test_the_rig_log_holds_measurements_commands_and_truth_only(rig_log):
-    from drill_twin.cli.rig import read_rig_log
+    from drill_twin.cli.rig_files import read_rig_log
     from drill_twin.recording.reader import topics
 
     assert set(topics(rig_log)) == {'/rig/top_drive', '/rig/hook', '/rig/downhole',
@@ -210,7 +210,7 @@ def test_a_channel_on_a_float64_topic_reads_and_assimilates_as_in_joint_state(ri
     from mcap_ros2.decoder import DecoderFactory
 
     from drill_twin.assimilation.offline import run_filter
-    from drill_twin.cli.rig import read_rig_log, write_rig_log
+    from drill_twin.cli.rig_files import read_rig_log, write_rig_log
     from drill_twin.config import load_config
 
     overrides = SENSORS[1::2] + ['assimilation.filter.members=3',

@@ -78,7 +78,7 @@ def test_the_assimilation_core_never_imports_rclpy():
     code = ('import sys\n'
             'import drill_twin.assimilation.filter, drill_twin.assimilation.offline\n'
             'import drill_twin.assimilation.rig_emulator, drill_twin.assimilation.steady_law\n'
-            'import drill_twin.cli.rig, drill_twin.cli.assimilate\n'
+            'import drill_twin.cli.rig, drill_twin.cli.assimilate, drill_twin.cli.rig_files\n'
             'assert "rclpy" not in sys.modules, "the assimilation core imported rclpy"\n')
     root = str(Path(__file__).resolve().parents[2])
     subprocess.run([sys.executable, '-c', code], check=True, timeout=120,
