@@ -50,7 +50,7 @@ from drill_twin.assimilation.offline import run_filter, summarise
 from drill_twin.assimilation.rig_emulator import run_rig
 from drill_twin.assimilation.settings import load_assimilation
 from drill_twin.assimilation.steady_law import steady_point
-from drill_twin.cli.rig import read_rig_log, write_rig_log
+from drill_twin.cli.rig_files import read_rig_log, write_rig_log
 from drill_twin.config import load_config
 from drill_twin.model.bit_rock import BitRockLaw
 from drill_twin.model.reduced_system import build_reduced_system

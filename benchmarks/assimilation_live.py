@@ -199,7 +199,7 @@ def main() -> None:
     from threadpoolctl import threadpool_limits
 
     from drill_twin.assimilation.settings import load_assimilation
-    from drill_twin.cli.rig import read_rig_log
+    from drill_twin.cli.rig_files import read_rig_log
 
     settings = load_assimilation(args.assimilation or None)
     log = read_rig_log(args.rig_log, settings)
