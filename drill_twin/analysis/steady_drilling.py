@@ -125,10 +125,7 @@ def steady_coordinates(system: ReducedSystem, steady: SteadyDrilling, hook_load_
         bit_row = axial.shapes[bit][moving - axial.columns.start]
         q_rate[:, moving[0]] = steady.rop_m_per_s / bit_row[0]
     torque = 0.0 if steady.lifted else steady.torque_nm
-    torsional_load = (torsion.shapes[bit] * torque
-                      - system.damping_driven[torsion.columns] * steady.top_speed_rad_per_s)
     q_rate[:, torsion.columns] = 0.0
     if torsion.shapes.shape[1]:
-        q[:, torsion.columns] = la.solve(system.stiffness[torsion.columns, torsion.columns],
-                                         torsional_load)
+        q[:, torsion.columns] = system.steady_twist(torque, steady.top_speed_rad_per_s)
     return q, q_rate

@@ -45,6 +45,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from drill_twin.numerics.compiled import inline
+
 N_STRAINS = 8
 E_AXIAL, A_SLOPE_V, B_SLOPE_W, KAPPA_Y, KAPPA_Z, TAU, THETA_Y, THETA_Z = range(N_STRAINS)
 _COMPLEX_STEP = 1e-30
@@ -112,13 +114,25 @@ def stress_resultants(g: np.ndarray, s: SectionStiffness) -> np.ndarray:
 
 def stress_components(g, s: SectionStiffness):
     """
-    dW/dg component by component.
+    dW/dg component by component: :func:`section_stress` over arrays.
 
     ``g`` is a sequence of 8 arrays (e, a, b, kappa_y, kappa_z, tau, theta_y, theta_z)
     broadcastable with the section constants; returns the 8 components (contiguous arrays make
     this several times faster than a strided last axis).
     """
-    e, a, b, ky, kz, tau, ty, tz = g
+    return section_stress.py_func(*g, s.EA, s.EI, s.ER4, s.kGA, s.kGI)
+
+
+@inline
+def section_stress(e, a, b, ky, kz, tau, ty, tz, ea, ei, er4, kga, kgi):
+    """
+    Return dW/dg at the strains g = (e, a, b, kappa_y, kappa_z, tau, theta_y, theta_z).
+
+    Of a section (EA, EI, ER4, kGA, kGI), as the 8 components of g (module docstring). The one
+    implementation: compiled into the finite-strain kernel
+    (:mod:`drill_twin.model.finite_strain`), and run over numpy arrays (real or complex, any
+    broadcastable shapes) by :func:`stress_components` through its Python function.
+    """
     one_e = 1 + e
     p = tau * ty - kz
     q = ky + tau * tz
@@ -128,18 +142,18 @@ def stress_components(g, s: SectionStiffness):
     c11 = 0.5 * (p * p + tau * tau)
     c22 = 0.5 * (q * q + tau * tau)
     c12 = p * q
-    s1 = s.kGA * (a - tz * one_e)          # dW/ds1
-    s2 = s.kGA * (b + ty * one_e)          # dW/ds2
-    t1 = s.kGI * (tz * p)
-    t2 = s.kGI * (tau + tz * q)
-    t3 = s.kGI * (tau + ty * p)
-    t4 = s.kGI * (ty * q)
-    w0 = s.EA * c0 + s.EI * (c11 + c22)
-    w1 = s.EI * c1
-    w2 = s.EI * c2
-    w11 = s.EI * c0 + s.ER4 * (3 * c11 + c22)
-    w22 = s.EI * c0 + s.ER4 * (3 * c22 + c11)
-    w12 = s.ER4 * c12
+    s1 = kga * (a - tz * one_e)            # dW/ds1
+    s2 = kga * (b + ty * one_e)            # dW/ds2
+    t1 = kgi * (tz * p)
+    t2 = kgi * (tau + tz * q)
+    t3 = kgi * (tau + ty * p)
+    t4 = kgi * (ty * q)
+    w0 = ea * c0 + ei * (c11 + c22)
+    w1 = ei * c1
+    w2 = ei * c2
+    w11 = ei * c0 + er4 * (3 * c11 + c22)
+    w22 = ei * c0 + er4 * (3 * c22 + c11)
+    w12 = er4 * c12
     dp = w1 * one_e + w11 * p + w12 * q + t1 * tz + t3 * ty
     dq = w2 * one_e + w22 * q + w12 * p + t2 * tz + t4 * ty
     return (w0 * one_e + w1 * p + w2 * q - s1 * tz + s2 * ty,      # e
@@ -177,15 +191,27 @@ def printed_eq15_strains(g: np.ndarray, theta_x) -> np.ndarray:
     derivation of the printed displacement field.)
     """
     g = np.asarray(g)
-    c, s = np.cos(theta_x), np.sin(theta_x)
     out = np.array(g, dtype=np.result_type(g, float), copy=True)
-    ty, tz = g[..., THETA_Y], g[..., THETA_Z]
-    ky, kz, tau = g[..., KAPPA_Y], g[..., KAPPA_Z], g[..., TAU]
-    out[..., THETA_Y] = ty * c - tz * s
-    out[..., THETA_Z] = tz * c + ty * s
-    out[..., KAPPA_Y] = ky * c - kz * s - tau * out[..., THETA_Z]
-    out[..., KAPPA_Z] = kz * c + ky * s + tau * out[..., THETA_Y]
+    (out[..., KAPPA_Y], out[..., KAPPA_Z], out[..., THETA_Y],
+     out[..., THETA_Z]) = turned_tilts.py_func(g[..., KAPPA_Y], g[..., KAPPA_Z], g[..., TAU],
+                                               g[..., THETA_Y], g[..., THETA_Z],
+                                               np.cos(theta_x), np.sin(theta_x))
     return out
+
+
+@inline
+def turned_tilts(ky, kz, tau, ty, tz, c, s):
+    """
+    (kappa~_y, kappa~_z, theta~_y, theta~_z) of :func:`printed_eq15_strains`.
+
+    The tilts and their derivatives turned by the twist angle whose cosine and sine are c, s.
+    The one implementation: compiled into the finite-strain kernel's printed stress, and run
+    over numpy arrays by :func:`printed_eq15_strains` through its Python function.
+    """
+    turned_y = ty * c - tz * s
+    turned_z = tz * c + ty * s
+    return (ky * c - kz * s - tau * turned_z, kz * c + ky * s + tau * turned_y,
+            turned_y, turned_z)
 
 
 def printed_eq15_jacobian(theta_x: float) -> np.ndarray:

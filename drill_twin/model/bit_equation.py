@@ -53,7 +53,7 @@ from __future__ import annotations
 import numpy as np
 
 from drill_twin.model.bit_rock import (BitRockLaw, cutting_rate, maximum, minimum,
-                                       randomised_point, torque_of_force)
+                                       randomised_point, torque_of_force, z_factor)
 from drill_twin.numerics.compiled import inline, kernel
 
 ROOT_ITERATIONS = 200
@@ -248,7 +248,7 @@ def _torsion(parameter, b2, c2, rho, slope, germ, guess, k):
 @inline
 def _mean_axial_root(omega, b1, c1, rho, slope, k):
     """P of the mean law's axial equation at a given omega, in closed form."""
-    z = omega / np.sqrt(omega * omega + k[5] * k[5])
+    z = z_factor(omega, k)
     r0 = cutting_rate(0.0, omega, k)
     top = maximum(rho, r0)
     # G(P) = max(rho + slope P, R(-P)) - b1 + c1 P: the root of a maximum of two increasing

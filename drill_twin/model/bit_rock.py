@@ -121,6 +121,9 @@ class BitRockLaw:
                          germ, scales=scales)
 
     # -- the law as the bit's solve uses it: ROP and torque as functions of the force ------
+    # Views over arrays of the compiled scalar law (:func:`cutting_rate`, :func:`fade_force`,
+    # :func:`torque_of_force`, :func:`randomised_point`): one implementation, any broadcast
+    # shape of real arguments.
     def cutting_rate(self, force, omega):
         """
         R(f, omega) = Z^2 (-a1 - a2 f) + a3 omega Z (m/s).
@@ -130,8 +133,7 @@ class BitRockLaw:
         omega^2), and even in omega as the regularised law is (docs/MODEL-CHOICES.md, backward
         rotation).
         """
-        z = self._cutting_z(omega)
-        return z * z * (-self.a1 - self.a2 * force) + self.a3 * omega * z
+        return self._graph(force, omega)[0]
 
     def threshold_force(self, omega):
         """
@@ -140,7 +142,7 @@ class BitRockLaw:
         For omega > 0, (a3 sqrt(omega^2 + e^2) - a1) / a2 (N), written for any omega (even);
         about -47 kN at 5.2 rad/s, > 0 above 24.9 rad/s.
         """
-        return (self.a3 * np.sqrt(omega * omega + self.e * self.e) - self.a1) / self.a2
+        return self._graph(0.0, omega)[2]
 
     def fade_force(self, omega):
         """
@@ -149,7 +151,7 @@ class BitRockLaw:
         The torque fades in proportion to the force between f_ref and lift-off (f = 0), see
         ``torque_of_force``.
         """
-        return np.minimum(self.threshold_force(omega), -TORQUE_FADE_FORCE_N)
+        return self._graph(0.0, omega)[3]
 
     @property
     def fade_speed_rad_per_s(self) -> float:
@@ -172,12 +174,9 @@ class BitRockLaw:
         (the whole cutting branch below 24.8 rad/s). Below the cutting threshold (the bit
         rests on the rock, ROP = 0) the friction-like term -a5 Z is carried in proportion to
         the force and vanishes at lift-off, so the torque is continuous in f everywhere.
+        ``cutting_rate``: R(f, omega) if known (else computed).
         """
-        s = omega * omega + self.e * self.e
-        root = np.sqrt(s)
-        rate = self.cutting_rate(force, omega) if cutting_rate is None else cutting_rate
-        share = np.clip(force / self.fade_force(omega), 0.0, 1.0)
-        return -(omega / root) * (self.a4 * np.maximum(rate, 0.0) / root + self.a5) * share
+        return self._graph(force, omega, cutting_rate)[1]
 
     def bearing_torque(self, force, omega, germ=None, scales=None):
         """
@@ -190,11 +189,9 @@ class BitRockLaw:
         """
         force = np.ascontiguousarray(force, dtype=float)
         omega = np.ascontiguousarray(np.broadcast_to(omega, force.shape), dtype=float)
-        random = germ is not None
-        germs = (np.ascontiguousarray(germ, dtype=float).reshape(-1, 2, 2) if random
-                 else _IDENTITY_GERM)
         torque = np.empty(force.shape)
-        bearing_torques(force, omega, germs, random, self.rows(scales), torque)
+        bearing_torques(force, omega, _germ_rows(germ), germ is not None, self.rows(scales),
+                        torque)
         return torque
 
     def randomised(self, force, torque, rop, cutting_rate, omega, germ):
@@ -207,31 +204,34 @@ class BitRockLaw:
         ``forces``; 0 where the bit does not cut, so the law is continuous at omega = 0 and
         at the cutting threshold). The axial force cannot pull (F1 <= 0); the torque is
         kept when the random F1 reaches 0, so it stays continuous (docs/MODEL-CHOICES.md).
+        germ: (m or 1, 2, 2), or None (the mean law: force and torque as given).
         """
         if germ is None:
             return force, torque
-        g11, g12, g22 = germ[:, 0, 0], germ[:, 0, 1], germ[:, 1, 1]
-        admissible = (cutting_rate > 0) & (rop > 0) & (omega > 0) & (force < 0) & (torque < 0)
-        safe_rop = np.where(admissible, rop, 1.0)
-        safe_omega = np.where(admissible, omega, 1.0)
-        coupling = np.sqrt(np.where(admissible, (force / safe_rop) * (torque / safe_omega), 0.0))
-        cut = np.where(admissible, cutting_rate, 0.0)
-        weight = cut * cut / (cut * cut + self.rop_scale * self.rop_scale)
-        f1 = force + weight * ((g11 - 1.0) * force - g12 * coupling * safe_omega)
-        f2 = torque + weight * ((g22 - 1.0) * torque - g12 * coupling * safe_rop)
-        return np.minimum(f1, 0.0), f2
+        shape, flat = _flattened(force, torque, rop, cutting_rate, omega)
+        out = np.empty((2, flat[0].size))
+        randomised_points(*flat, _germ_rows(germ), self.rows(), out)
+        return tuple(row.reshape(shape)[()] for row in out)
 
-    def _cutting_z(self, omega):
-        return omega / np.sqrt(omega * omega + self.e * self.e)
+    def steady_rop(self, omega, force_n):
+        """
+        ROP of Eq. 24 (regularised) at a bit speed and a bit force f (N, < 0 pushes) (m/s).
 
-    def steady_rop(self, omega, weight_on_bit_n):
-        """ROP of Eq. 24 (regularised) at a given bit speed and weight on bit."""
-        z = omega / np.sqrt(omega * omega + self.e * self.e)
-        return z * z * (-self.a1 - self.a2 * weight_on_bit_n) + self.a3 * omega * z
+        Steady drilling: the cutting rate :meth:`cutting_rate` at (f, omega).
+        """
+        return self.cutting_rate(force_n, omega)
 
-    def steady_torque(self, omega, weight_on_bit_n):
-        """Torque on bit of the regularised law at a steady (ROP, omega)."""
-        return self.mean(self.steady_rop(omega, weight_on_bit_n), omega)[1]
+    def steady_torque(self, omega, force_n):
+        """Torque on bit of the regularised law at steady drilling under the bit force f (N m)."""
+        return self.mean(self.steady_rop(omega, force_n), omega)[1]
+
+    def _graph(self, force, omega, rate=None):
+        """(R, t_bit, threshold, f_ref) of :func:`graph_points` at broadcast force, omega."""
+        given = rate is not None
+        shape, flat = _flattened(force, omega, rate if given else 0.0)
+        out = np.empty((4, flat[0].size))
+        graph_points(*flat, given, self.rows(), out)
+        return tuple(row.reshape(shape)[()] for row in out)
 
 
 def fade_speeds(rows: np.ndarray) -> np.ndarray:
@@ -309,17 +309,28 @@ def law_point(rop, omega, g11, g12, g22, random, k):
 
 
 @inline
+def z_factor(omega, k):
+    """Z = omega / sqrt(omega^2 + e^2) of Eq. 25 (scalar)."""
+    return omega / np.sqrt(omega * omega + k[5] * k[5])
+
+
+@inline
 def cutting_rate(force, omega, k):
     """R(f, omega) of :meth:`BitRockLaw.cutting_rate` (scalars)."""
-    z = omega / np.sqrt(omega * omega + k[5] * k[5])
+    z = z_factor(omega, k)
     return z * z * (-k[0] - k[1] * force) + k[2] * omega * z
+
+
+@inline
+def threshold_force(omega, k):
+    """Return the force f of :meth:`BitRockLaw.threshold_force` (scalar, N)."""
+    return (k[2] * np.sqrt(omega * omega + k[5] * k[5]) - k[0]) / k[1]
 
 
 @inline
 def fade_force(omega, k):
     """f_ref of :meth:`BitRockLaw.fade_force` (scalar)."""
-    threshold = (k[2] * np.sqrt(omega * omega + k[5] * k[5]) - k[0]) / k[1]
-    return minimum(threshold, -TORQUE_FADE_FORCE_N)
+    return minimum(threshold_force(omega, k), -TORQUE_FADE_FORCE_N)
 
 
 @inline
@@ -391,6 +402,42 @@ def bit_law(rop, omega, germ, random, constants, cut, force, torque, lifted, jac
         jacobian[i, 1, 1] = j11
 
 
+@kernel
+def graph_points(force, omega, rate, given, constants, out):
+    """
+    Evaluate the law's graph at every (force[i], omega[i]) (m,) for :class:`BitRockLaw`'s views.
+
+    Into out (4, m): R(f, omega) (or ``rate`` (m,) where ``given``), t_bit of
+    :func:`torque_of_force` at that rate, the threshold force and f_ref at omega. constants
+    (m or 1, 8) as bit_law's.
+    """
+    last_law = constants.shape[0] - 1
+    for i in range(force.shape[0]):
+        k = constants[min(i, last_law)]
+        f, w = force[i], omega[i]
+        cut = rate[i] if given else cutting_rate(f, w, k)
+        out[0, i] = cut
+        out[1, i] = torque_of_force(f, w, cut, k)
+        out[2, i] = threshold_force(w, k)
+        out[3, i] = fade_force(w, k)
+
+
+@kernel
+def randomised_points(force, torque, rop, rate, omega, germ, constants, out):
+    """
+    :func:`randomised_point` at every point (m,) into out (2, m): (F1, F2).
+
+    germ (m or 1, 2, 2), constants (m or 1, 8) as bit_law's.
+    """
+    last = germ.shape[0] - 1
+    last_law = constants.shape[0] - 1
+    for i in range(force.shape[0]):
+        g = germ[min(i, last)]
+        out[0, i], out[1, i] = randomised_point(force[i], torque[i], rop[i], rate[i], omega[i],
+                                                g[0, 0], g[0, 1], g[1, 1], True,
+                                                constants[min(i, last_law)])
+
+
 BEARING_ITERATIONS = 200
 """Cap of the bisection that finds the mean-law force of a borne force (~60 are used)."""
 
@@ -446,19 +493,26 @@ def _borne(mean_force, omega, g11, g12, g22, k):
 
 def _call_law(law: BitRockLaw, rop, omega, germ, cut: bool = True, scales=None):
     """bit_law on arrays of any (broadcast) shape; (f, t, lifted, J)."""
-    rop, omega = np.broadcast_arrays(rop, omega)
-    shape = rop.shape
     dtype = np.result_type(rop, omega, float)
-    flat_rop = np.ascontiguousarray(rop, dtype=dtype).reshape(-1)
-    flat_omega = np.ascontiguousarray(omega, dtype=dtype).reshape(-1)
+    shape, (flat_rop, flat_omega) = _flattened(rop, omega, dtype=dtype)
     size = flat_rop.size
     force, torque = np.empty(size, dtype), np.empty(size, dtype)
     lifted = np.empty(size, dtype=bool)
     jacobian = np.empty((size, 2, 2), dtype)
-    random = germ is not None
-    germs = (np.ascontiguousarray(germ, dtype=float).reshape(-1, 2, 2) if random
-             else _IDENTITY_GERM)
-    bit_law(flat_rop, flat_omega, germs, random, law.rows(scales), cut, force, torque, lifted,
-            jacobian)
+    bit_law(flat_rop, flat_omega, _germ_rows(germ), germ is not None, law.rows(scales), cut,
+            force, torque, lifted, jacobian)
     return (force.reshape(shape)[()], torque.reshape(shape)[()], lifted.reshape(shape)[()],
             jacobian.reshape(shape + (2, 2)))
+
+
+def _flattened(*values, dtype=float):
+    """(shape, flat contiguous copies (size,)) of ``values`` broadcast together."""
+    arrays = np.broadcast_arrays(*(np.asarray(value, dtype=dtype) for value in values))
+    return arrays[0].shape, [np.ascontiguousarray(array).reshape(-1) for array in arrays]
+
+
+def _germ_rows(germ) -> np.ndarray:
+    """Germs (m or 1, 2, 2) as the kernels take them; the identity for None (mean law)."""
+    if germ is None:
+        return _IDENTITY_GERM
+    return np.ascontiguousarray(germ, dtype=float).reshape(-1, 2, 2)

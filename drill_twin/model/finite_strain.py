@@ -32,6 +32,7 @@ import scipy.sparse as sp
 from drill_twin.numerics.compiled import VECTOR_BATCH, inline, kernel
 from drill_twin.numerics.padded_rows import padded_rows, unsigned_index
 from drill_twin.fem import strain_energy as se
+from drill_twin.fem.strain_energy import section_stress, turned_tilts
 
 READINGS = ('invariant', 'printed_elastic', 'printed_absolute')
 """``lateral_readings.strain_kinematics``, in the order of the kernel's reading code."""
@@ -121,58 +122,16 @@ class StrainOperators:
 
 
 @inline
-def _stress(e, a, b, ky, kz, tau, ty, tz, ea, ei, er4, kga, kgi):
-    """
-    Return dW/dg at the strains g = (e, a, b, kappa_y, kappa_z, tau, theta_y, theta_z).
-
-    Of a section (EA, EI, ER4, kGA, kGI): fem.strain_energy.stress_components, term by term.
-    """
-    one_e = 1 + e
-    p = tau * ty - kz
-    q = ky + tau * tz
-    c0 = e + 0.5 * (e * e + a * a + b * b)
-    c1 = p * one_e + b * tau
-    c2 = q * one_e - a * tau
-    c11 = 0.5 * (p * p + tau * tau)
-    c22 = 0.5 * (q * q + tau * tau)
-    c12 = p * q
-    s1 = kga * (a - tz * one_e)
-    s2 = kga * (b + ty * one_e)
-    t1 = kgi * (tz * p)
-    t2 = kgi * (tau + tz * q)
-    t3 = kgi * (tau + ty * p)
-    t4 = kgi * (ty * q)
-    w0 = ea * c0 + ei * (c11 + c22)
-    w1 = ei * c1
-    w2 = ei * c2
-    w11 = ei * c0 + er4 * (3 * c11 + c22)
-    w22 = ei * c0 + er4 * (3 * c22 + c11)
-    w12 = er4 * c12
-    dp = w1 * one_e + w11 * p + w12 * q + t1 * tz + t3 * ty
-    dq = w2 * one_e + w22 * q + w12 * p + t2 * tz + t4 * ty
-    return (w0 * one_e + w1 * p + w2 * q - s1 * tz + s2 * ty,
-            w0 * a - w2 * tau + s1,
-            w0 * b + w1 * tau + s2,
-            dq,
-            -dp,
-            w1 * b - w2 * a + (w11 + w22) * tau + t2 + t3 + dp * ty + dq * tz,
-            s2 * one_e + t3 * p + t4 * q + dp * tau,
-            -s1 * one_e + t1 * p + t2 * q + dq * tau)
-
-
-@inline
 def _printed_stress(e, a, b, ky, kz, tau, ty, tz, theta, ea, ei, er4, kga, kgi):
     """
     d/d(g, theta_x) of W(g~(g, theta_x)), Eq. 15 as printed: 9 values (the 8 of g, theta_x).
 
-    The chain rule through fem.strain_energy.printed_eq15_strains.
+    The chain rule through fem.strain_energy.printed_eq15_strains (its turned_tilts) and the
+    section's stress (fem.strain_energy.section_stress, the one implementation of dW/dg).
     """
     c, s = np.cos(theta), np.sin(theta)
-    tty = ty * c - tz * s
-    ttz = tz * c + ty * s
-    tky = ky * c - kz * s - tau * ttz
-    tkz = kz * c + ky * s + tau * tty
-    r = _stress(e, a, b, tky, tkz, tau, tty, ttz, ea, ei, er4, kga, kgi)
+    tky, tkz, tty, ttz = turned_tilts(ky, kz, tau, ty, tz, c, s)
+    r = section_stress(e, a, b, tky, tkz, tau, tty, ttz, ea, ei, er4, kga, kgi)
     sky, skz, sty, stz = r[3], r[4], r[6], r[7]
     return (r[0], r[1], r[2],
             sky * c + skz * s,
@@ -228,7 +187,7 @@ def accumulate_finite_strain(displacement_t, strain_column, strain_value, strain
             h0, h1, h2, h3, h4, h5, h6, h7 = h[0], h[1], h[2], h[3], h[4], h[5], h[6], h[7]
             ea, ei, er4, kga, kgi = s[0], s[1], s[2], s[3], s[4]
             for i in range(members):
-                r0, r1, r2, r3, r4, r5, r6, r7 = _stress(
+                r0, r1, r2, r3, r4, r5, r6, r7 = section_stress(
                     g0 + strain[0, i], g1 + strain[1, i], g2 + strain[2, i], g3 + strain[3, i],
                     g4 + strain[4, i], g5 + strain[5, i], g6 + strain[6, i], g7 + strain[7, i],
                     ea, ei, er4, kga, kgi)
@@ -301,10 +260,11 @@ def _accumulate_member(displacement_t, i, strain_column, strain_value, tangent_r
                                              * strain[tangent_column[p, j], i])
         g, s, w = prestress_strain[p], section[p], weight_m[p]
         if reading == 0:
-            sigma = _stress(g[0] + strain[0, i], g[1] + strain[1, i], g[2] + strain[2, i],
-                            g[3] + strain[3, i], g[4] + strain[4, i], g[5] + strain[5, i],
-                            g[6] + strain[6, i], g[7] + strain[7, i], s[0], s[1], s[2], s[3],
-                            s[4])
+            sigma = section_stress(g[0] + strain[0, i], g[1] + strain[1, i],
+                                   g[2] + strain[2, i], g[3] + strain[3, i],
+                                   g[4] + strain[4, i], g[5] + strain[5, i],
+                                   g[6] + strain[6, i], g[7] + strain[7, i],
+                                   s[0], s[1], s[2], s[3], s[4])
             for k in range(8):
                 stress[k, i] = ((sigma[k] - prestress_stress[p, k]) - linear[k, i]) * w
         else:

@@ -162,6 +162,19 @@ class ReducedSystem:
             out[..., block.columns] = force[..., block.rows] @ block.shapes
         return out
 
+    def steady_twist(self, torque_on_bit_nm: float, top_speed_rad_per_s: float) -> np.ndarray:
+        """
+        Return the torsional coordinates (rad, the torsional block's) of a steady twist.
+
+        In static equilibrium under the torque on bit t_bit (N m) and the drag of the string
+        spinning at Omega (rad/s): K_r q = Phi_bit t_bit - Phi^T (C + C_f) psi Omega on the
+        torsional block.
+        """
+        torsion = self.blocks['torsional']
+        load = (torsion.shapes[self.bit_node] * torque_on_bit_nm
+                - self.damping_driven[torsion.columns] * top_speed_rad_per_s)
+        return np.linalg.solve(self.stiffness[torsion.columns, torsion.columns], load)
+
 
 def _column_groups(model: FiniteElementModel, basis: ReducedBasis) -> dict[str, np.ndarray]:
     shapes = basis.shapes
@@ -204,19 +217,7 @@ def build_reduced_system(model: FiniteElementModel, basis: ReducedBasis) -> Redu
     inverse = np.empty_like(permutation)
     inverse[permutation] = np.arange(permutation.size)
     element_dofs = inverse[mesh.element_dofs]            # element DOFs in field-wise numbering
-
-    groups = _column_groups(model, basis)
-    order = np.concatenate([groups[g] for g in GROUPS])
-    phi = basis.shapes[permutation][:, order]          # field-wise rows, grouped columns
-    blocks, start = {}, 0
-    for name in GROUPS:
-        count = groups[name].size
-        fields = _GROUP_FIELDS[name]
-        rows = slice(fields[0] * n_nodes, (fields[-1] + 1) * n_nodes)
-        block = np.ascontiguousarray(phi[rows, start:start + count])
-        blocks[name] = Block(columns=slice(start, start + count), rows=rows, shapes=block,
-                             shapes_t=np.ascontiguousarray(block.T))
-        start += count
+    order, blocks = _blocks(model, basis, permutation, n_nodes)
 
     reduced = reduce_matrices(model, basis)
     pick = np.ix_(order, order)
@@ -225,17 +226,17 @@ def build_reduced_system(model: FiniteElementModel, basis: ReducedBasis) -> Redu
     component_major = (np.arange(n_points)[None, :] * se.N_STRAINS
                        + np.arange(se.N_STRAINS)[:, None]).ravel()
     strain = strain[component_major].tocsr()              # row k * P + p: component first
-    value = quad.rows.value
     prestress_strain = model.prestress_strain.reshape(n_el * n_pt, se.N_STRAINS)
     section = se.SectionStiffness(
         **{name: np.repeat(getattr(model.section, name)[:, 0], n_pt)
            for name in ('EA', 'EI', 'ER4', 'kGA', 'kGI')})
 
     def rotation_rows(field, block):
-        rows = blocks[block].rows
-        operator = _gauss_operator(value[:, :, [field]], element_dofs, permutation.size)
-        return np.ascontiguousarray(operator[:, rows].toarray())
+        operator = _gauss_operator(quad.rows.value[:, :, [field]], element_dofs,
+                                   permutation.size)
+        return np.ascontiguousarray(operator[:, blocks[block].rows].toarray())
 
+    prestress_stress = se.stress_resultants(prestress_strain, section)
     prestress_tangent = se.tangent_stiffness(prestress_strain, section)
     tangent_blocks = sp.bmat([[sp.diags(prestress_tangent[:, k, l])  # noqa: E741
                                for l in range(se.N_STRAINS)]  # noqa: E741
@@ -243,18 +244,9 @@ def build_reduced_system(model: FiniteElementModel, basis: ReducedBasis) -> Redu
     theta_x = rotation_rows(sf.FIELD_THETA_X, 'torsional')
     theta_y = rotation_rows(sf.FIELD_THETA_Y, 'bending_z')
     theta_z = rotation_rows(sf.FIELD_THETA_Z, 'bending_y')
-
     psi = basis.driven_rotation
     driven_rows = {name: np.asarray(matrix.T @ psi).ravel()[permutation]
                    for name, matrix in (('mass', model.total_mass), ('damping', model.damping()))}
-    stations = []
-    for x in model.config.output.stations_m:
-        element, xi = mesh.locate(x)
-        rows = sf.field_rows(np.array([xi]), mesh.length_m[element:element + 1],
-                             mesh.timoshenko_phi()[element:element + 1]).value[0, 0]
-        full = np.zeros((sf.N_FIELDS, permutation.size))
-        full[:, element_dofs[element]] = rows
-        stations.append(Station(x_m=float(x), rows=full))
     top_axial = dofs.node_dof(0, dofs.U)
     return ReducedSystem(
         model=model, basis=basis, basis_columns=order,
@@ -271,12 +263,11 @@ def build_reduced_system(model: FiniteElementModel, basis: ReducedBasis) -> Redu
         gauss_weight_m=quad.weight_m.ravel(),
         polar_inertia_density=np.repeat(mesh.density_kg_per_m3 * mesh.polar_inertia_m4, n_pt),
         prestress_strain=prestress_strain,
-        prestress_stress=se.stress_resultants(prestress_strain, section),
+        prestress_stress=prestress_stress,
         prestress_tangent=prestress_tangent,
         section=section,
         prestress_strain_components=np.ascontiguousarray(prestress_strain.T)[:, :, None],
-        prestress_stress_components=np.ascontiguousarray(
-            se.stress_resultants(prestress_strain, section).T)[:, :, None],
+        prestress_stress_components=np.ascontiguousarray(prestress_stress.T)[:, :, None],
         section_columns=se.SectionStiffness(**{k: v[:, None] for k, v in
                                                section.__dict__.items()}),
         clearance_m=model.config.borehole.diameter_m / 2.0 - mesh.node_outer_radius_m,
@@ -284,5 +275,42 @@ def build_reduced_system(model: FiniteElementModel, basis: ReducedBasis) -> Redu
         bit_node=mesh.bit_node,
         top_axial_row=basis.shapes[top_axial, order].copy(),
         driven_rows=driven_rows,
-        stations=tuple(stations),
+        stations=_stations(model, element_dofs, permutation.size),
     )
+
+
+def _blocks(model: FiniteElementModel, basis: ReducedBasis, permutation: np.ndarray,
+            n_nodes: int) -> tuple[np.ndarray, dict]:
+    """
+    (order, blocks): the basis columns grouped (GROUPS), and the four :class:`Block`.
+
+    order: for each reduced coordinate its column in ``basis``; a block's shapes are [Phi] on
+    its fields' field-wise rows (``permutation``, n_nodes per field).
+    """
+    groups = _column_groups(model, basis)
+    order = np.concatenate([groups[g] for g in GROUPS])
+    phi = basis.shapes[permutation][:, order]          # field-wise rows, grouped columns
+    blocks, start = {}, 0
+    for name in GROUPS:
+        count = groups[name].size
+        fields = _GROUP_FIELDS[name]
+        rows = slice(fields[0] * n_nodes, (fields[-1] + 1) * n_nodes)
+        block = np.ascontiguousarray(phi[rows, start:start + count])
+        blocks[name] = Block(columns=slice(start, start + count), rows=rows, shapes=block,
+                             shapes_t=np.ascontiguousarray(block.T))
+        start += count
+    return order, blocks
+
+
+def _stations(model: FiniteElementModel, element_dofs: np.ndarray, n_dofs: int) -> tuple:
+    """Return the output stations (:class:`Station`) of the configuration, rows on n_dofs DOFs."""
+    mesh = model.mesh
+    stations = []
+    for x in model.config.output.stations_m:
+        element, xi = mesh.locate(x)
+        rows = sf.field_rows(np.array([xi]), mesh.length_m[element:element + 1],
+                             mesh.timoshenko_phi()[element:element + 1]).value[0, 0]
+        full = np.zeros((sf.N_FIELDS, n_dofs))
+        full[:, element_dofs[element]] = rows
+        stations.append(Station(x_m=float(x), rows=full))
+    return tuple(stations)

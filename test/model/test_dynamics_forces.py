@@ -109,6 +109,19 @@ def test_finite_strain_force_is_of_second_order(system):
     assert smaller / small == pytest.approx(0.25, rel=0.02)
 
 
+@pytest.mark.parametrize('members', [1, 20])            # member by member, and vectorised
+def test_finite_strain_force_vanishes_exactly_at_the_prestress(system, members):
+    """
+    f_se(0) = -B^T w [dW/dg(g_S) - sigma_S] is zero to the bit.
+
+    sigma_S is computed once over numpy arrays (fem.strain_energy.stress_resultants) and
+    dW/dg(g_S + g) at every step by the compiled kernel: zero at u = 0 only if both are the
+    same arithmetic, the section's stress written once.
+    """
+    force = finite_strain_force(system, np.zeros((members, system.n_dofs)))
+    assert not np.any(force)
+
+
 def _kinematics(system, u, rate, acceleration):
     """Kinematics from full field-wise arrays (1, n_dofs)."""
     b = system.blocks
@@ -274,6 +287,31 @@ def test_matrix_form_of_eq41(law):
     assert force == pytest.approx(-a11 * rop, rel=1e-12)
     assert torque == pytest.approx(-a22 * omega, rel=1e-12)
     assert a11 > 0 and a22 > 0
+
+
+def test_the_graph_of_the_law_is_the_law_on_its_cutting_branch(law):
+    """
+    Along ROP = R(f, omega) the law's views give back Eq. 25-26 and Eq. 50.
+
+    The views (cutting rate, torque of force, random point) are read against the law at
+    the velocities (``mean``, ``forces``) where the bit cuts: f below the fade force.
+    """
+    omega = np.array([0.5, 2.0, 5.2, 9.0, 15.0])
+    force = np.array([-2.5e5, -1.8e5, -1.2e5, -1.5e5, -2.2e5])
+    assert np.all(force < law.fade_force(omega)) and np.all(law.threshold_force(omega) > force)
+    rop = law.cutting_rate(force, omega)
+    assert np.all(rop > 0)
+    np.testing.assert_array_equal(law.steady_rop(omega, force), rop)
+    mean_force, mean_torque = law.mean(rop, omega)
+    np.testing.assert_allclose(mean_force, force, rtol=1e-9)
+    torque = law.torque_of_force(force, omega)
+    np.testing.assert_allclose(torque, mean_torque, rtol=1e-9)
+    np.testing.assert_allclose(law.steady_torque(omega, force), mean_torque, rtol=1e-15)
+    germ = np.array([[[0.93, 0.08], [0.08, 1.08]]])
+    random_force, random_torque = law.randomised(force, torque, rop, rop, omega, germ)
+    expected_force, expected_torque, _ = law.forces(rop, omega, germ)
+    np.testing.assert_allclose(random_force, expected_force, rtol=1e-8)
+    np.testing.assert_allclose(random_torque, expected_torque, rtol=1e-8)
 
 
 def test_random_law_is_continuous_at_zero_rop(law):
