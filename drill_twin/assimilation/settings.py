@@ -17,10 +17,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable, Literal
 
+import numpy as np
+
 from drill_twin.config.loader import (ConfigError, _build, _BuildError, _read_yaml,
                                       apply_override, merge)
 from drill_twin.config.paths import config_directory
 from drill_twin.config.schema import ConfigValueError
+from drill_twin.uncertainty.germ import MAX_DISPERSION
 
 SECTION = 'assimilation'
 DEFAULT_FILE = 'assimilation.yaml'
@@ -78,7 +81,6 @@ class Channel:
 
     def std(self, value):
         """Return the noise standard deviation at ``value`` (same shape)."""
-        import numpy as np
         return np.hypot(self.noise_std, self.noise_relative * np.abs(value))
 
 
@@ -220,7 +222,6 @@ class Filter:
                self.measurements)
         for name in self.blocks:
             _check(name in BLOCKS, 'blocks', f'must be among {", ".join(BLOCKS)}', name)
-        from drill_twin.uncertainty.germ import MAX_DISPERSION
         _check(0 <= self.prior_dispersion < MAX_DISPERSION, 'prior_dispersion',
                f'must be in [0, {MAX_DISPERSION:.4f})', self.prior_dispersion)
         _check(self.seed >= 0, 'seed', 'must be >= 0', self.seed)

@@ -5,6 +5,7 @@ import argparse
 
 from drill_twin.cli.common import UsageError
 from drill_twin.cli.log_path import existing_log, HELP
+from drill_twin.cli.progress import ProgressBar
 
 
 def add_parser(subparsers) -> None:
@@ -33,7 +34,6 @@ def run(args: argparse.Namespace) -> int:
     if not args.rate > 0:
         raise UsageError(f'--rate: must be positive, got {args.rate}')
     if args.resimulate:
-        from drill_twin.cli.progress import ProgressBar
         from drill_twin.recording.resimulate import resimulate
 
         try:

@@ -8,6 +8,7 @@ from pathlib import Path
 from drill_twin.cli.common import (UsageError, add_config_arguments, blamed, config_from_args,
                                    positive_seconds, preflight_or_refuse, require_memory)
 from drill_twin.cli.progress import ProgressBar
+from drill_twin.config.loader import config_to_dict
 
 
 def add_parser(subparsers) -> None:
@@ -42,7 +43,6 @@ def run(args: argparse.Namespace) -> int:
     require_memory('--duration', f'{args.duration:g} s recorded every '
                    f'{config.output.record_interval_s:g} s ({records:.3g} records)', need)
     checked = preflight_or_refuse(config, args.overrides)
-    from drill_twin.config.loader import config_to_dict
     from drill_twin.integrator.simulator import SimulationDiverged
     from drill_twin.simulation.results_io import write_results
     from drill_twin.simulation.run import run_simulation

@@ -1,7 +1,10 @@
 """
-Recording layer of drill_twin: rosbag2 bags of MCAP files and their rerun views.
+Recording layer of drill_twin: rosbag2 bags of MCAP files.
 
-Modules (none imports rclpy or rerun at import time):
+None of its modules imports rclpy at import time: rclpy comes with ROS, and the functions
+that serialise or deserialise a ROS message (writing a log, reading it decoded, a QoS
+profile) import it when called, so that logs can be listed, read as CDR and recovered
+without ROS. Modules:
 
 - :mod:`~drill_twin.recording.message_types` - message classes from 'pkg/msg/Type' names;
 - :mod:`~drill_twin.recording.schemas` - 'ros2msg' schema texts and type hashes as rosbag2
@@ -14,8 +17,9 @@ Modules (none imports rclpy or rerun at import time):
 - :mod:`~drill_twin.recording.twin_log` - the twin node's log;
 - :mod:`~drill_twin.recording.reader` - reading logs back (also cut ones);
 - :mod:`~drill_twin.recording.recovery` - making a cut file whole;
-- :mod:`~drill_twin.recording.resimulate` - re-running a logged twin and comparing;
-- :mod:`~drill_twin.viz.rerun_view` - rerun blueprint, ``.rrd`` conversion, viewer.
+- :mod:`~drill_twin.recording.resimulate` - re-running a logged twin and comparing.
+
+Their rerun views are in :mod:`drill_twin.viz`.
 """
 
 from drill_twin.recording.bag_writer import BagWriter

@@ -11,6 +11,9 @@ BLAS environment that Dask's nanny gives its workers, so a study is identical bi
 with 1 or W local workers or a Dask cluster on the same machine. Machines whose CPUs make
 BLAS choose other kernels agree to rounding (about 1e-15), which the dynamics do not amplify
 (tests: about 1e-13 after 40 s).
+
+Dask's ``distributed`` (a second and a half to import) is imported by :class:`DaskExecutor`
+alone, when a study is given a scheduler's address.
 """
 from __future__ import annotations
 
