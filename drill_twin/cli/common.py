@@ -108,6 +108,13 @@ def positive_seconds(option: str, value: float) -> float:
     return value
 
 
+def positive_window(value: float) -> float:
+    """Return a positive ``--window`` (s, the stationary window at the end of a run)."""
+    if not value > 0:
+        raise UsageError(f'--window: must be positive, got {value}')
+    return value
+
+
 def available_memory_bytes() -> int:
     """
     Memory this process may still take.

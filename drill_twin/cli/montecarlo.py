@@ -7,7 +7,8 @@ import os
 from pathlib import Path
 
 from drill_twin.cli.common import (UsageError, add_config_arguments, blamed, config_from_args,
-                                   positive_seconds, preflight_or_refuse, require_memory)
+                                   positive_seconds, positive_window, preflight_or_refuse,
+                                   require_memory)
 from drill_twin.cli.progress import ProgressBar
 
 WORKERS_PER_CORE_MAX = 4
@@ -70,8 +71,7 @@ def add_parser(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     positive_seconds('--duration', args.duration)
-    if not args.window > 0:
-        raise UsageError(f'--window: must be positive, got {args.window}')
+    positive_window(args.window)
     if args.workers is not None and not 1 <= args.workers <= workers_max():
         raise UsageError(f'--workers: must lie in 1 ... {workers_max()} (four per core of this '
                          f'machine: more only compete for the cores), got {args.workers}')

@@ -6,7 +6,8 @@ import json
 from pathlib import Path
 
 from drill_twin.cli.common import (UsageError, add_config_arguments, blamed, config_from_args,
-                                   positive_seconds, preflight_or_refuse, require_memory)
+                                   positive_seconds, positive_window, preflight_or_refuse,
+                                   require_memory)
 from drill_twin.cli.progress import ProgressBar
 from drill_twin.config.loader import config_to_dict
 
@@ -34,8 +35,7 @@ def add_parser(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     positive_seconds('--duration', args.duration)
-    if not args.window > 0:
-        raise UsageError(f'--window: must be positive, got {args.window}')
+    positive_window(args.window)
     if args.out and Path(args.out).suffix not in ('.csv', '.npz'):
         raise UsageError(f'--out: {args.out}: use a .csv or .npz file name')
     config = config_from_args(args)

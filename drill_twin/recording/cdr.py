@@ -98,27 +98,26 @@ def float64(data: bytes) -> float:
 
 def float64_multi_array_labels(data: bytes) -> tuple[str, ...]:
     """std_msgs/Float64MultiArray: the labels of its layout's dimensions."""
+    labels, _ = _multi_array_layout(data)
+    return tuple(label.decode() for label in labels)
+
+
+def float64_multi_array(data: bytes) -> tuple[float, ...]:
+    """std_msgs/Float64MultiArray: the data (the layout is skipped)."""
+    _, position = _multi_array_layout(data)
+    values, _ = _doubles(data, position)
+    return values
+
+
+def _multi_array_layout(data: bytes) -> tuple[list[bytes], int]:
+    """Return the labels of a MultiArray's dimensions (bytes) and the position of its data."""
     _check(data)
     position = _HEADER
     (dims,) = _U32.unpack_from(data, position)
     position += 4
     labels = []
     for _ in range(dims):
-        end = _string_end(data, position)
-        labels.append(data[_align(position, 4) + 4:end - 1].decode())
-        position = _align(end, 4) + 8
-    return tuple(labels)
-
-
-def float64_multi_array(data: bytes) -> tuple[float, ...]:
-    """std_msgs/Float64MultiArray: the data (the layout is skipped)."""
-    _check(data)
-    position = _HEADER
-    (dims,) = _U32.unpack_from(data, position)
-    position += 4
-    for _ in range(dims):
-        position = _string_end(data, position)          # label
-        position = _align(position, 4) + 8              # size, stride
-    position = _align(position, 4) + 4                  # data_offset
-    values, _ = _doubles(data, position)
-    return values
+        end = _string_end(data, position)                       # label
+        labels.append(data[_align(position, 4) + 4:end - 1])
+        position = _align(end, 4) + 8                           # size, stride
+    return labels, _align(position, 4) + 4                      # data_offset

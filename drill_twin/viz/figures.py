@@ -65,8 +65,13 @@ def plot_run(result: SimulationResult, path: str | Path, window_s: float,
         right.set_ylabel(unit.replace('[', 'amplitude ['))
     axes[-1, 0].set_xlabel('time [s]')
     axes[-1, 1].set_xlabel('frequency [Hz]')
+    return save_figure(figure, path)
+
+
+def save_figure(figure, path, dpi: int = 110) -> Path:
+    """Lay ``figure`` out tightly, write it to ``path`` (PNG) and close it; return the path."""
     figure.tight_layout()
     path = Path(path)
-    figure.savefig(path, dpi=110)
+    figure.savefig(path, dpi=dpi)
     plt.close(figure)
     return path

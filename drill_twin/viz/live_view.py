@@ -20,7 +20,7 @@ import rerun as rr
 from drill_twin.config import load_config
 from drill_twin.viz import rerun_series as series
 from drill_twin.viz.rerun_blueprint import twin_blueprint
-from drill_twin.viz.rerun_entities import APPLICATION_ID, StringGeometry
+from drill_twin.viz.rerun_entities import APPLICATION_ID, HEALTH_ENTITIES, StringGeometry
 from drill_twin.viz.rerun_styles import log_styles
 from drill_twin.viz.rerun_view import viewer_command
 
@@ -34,6 +34,13 @@ _BIT_FIELDS = ('depth_m', 'rop_m_per_s', 'weight_on_bit_n', 'angle_rad', 'speed_
 
 def _bit_row(state) -> tuple[float, ...]:
     return tuple(float(getattr(state, name)) for name in _BIT_FIELDS)
+
+
+def _bounds(rows: list, width: int) -> tuple:
+    """Split rows (t, mean, lower, upper; ``width`` values each) into (t, mean, lower, upper)."""
+    a = np.asarray(rows, dtype=float)
+    return (a[:, 0], a[:, 1:1 + width], a[:, 1 + width:1 + 2 * width],
+            a[:, 1 + 2 * width:1 + 3 * width])
 
 
 class LiveView:
@@ -207,18 +214,14 @@ class LiveView:
             kpi = np.asarray(rows['kpi'], dtype=float)
             series.send_kpis(rec, kpi[:, 0], kpi[:, 1], kpi[:, 2], kpi[:, 3])
         if rows['ensemble']:
-            ens = np.asarray(rows['ensemble'])
-            series.send_ensemble(rec, ens[:, 0], ens[:, 1:7], ens[:, 7:13], ens[:, 13:19])
+            series.send_ensemble(rec, *_bounds(rows['ensemble'], len(_BIT_FIELDS)))
         if rows['germ']:
-            germ = np.asarray(rows['germ'], dtype=float)
-            series.send_germ(rec, germ[:, 0], germ[:, 1:4], germ[:, 4:7], germ[:, 7:10])
+            series.send_germ(rec, *_bounds(rows['germ'], 3))
         if rows['law']:
-            law = np.asarray(rows['law'], dtype=float)
-            series.send_law(rec, law[:, 0], law[:, 1:6], law[:, 6:11], law[:, 11:16])
+            series.send_law(rec, *_bounds(rows['law'], 5))
         if rows['bias']:
-            bias, b = np.asarray(rows['bias'], dtype=float), len(self._bias_channels)
-            series.send_bias(rec, bias[:, 0], self._bias_channels, bias[:, 1:1 + b],
-                             bias[:, 1 + b:1 + 2 * b], bias[:, 1 + 2 * b:1 + 3 * b])
+            t, mean, lower, upper = _bounds(rows['bias'], len(self._bias_channels))
+            series.send_bias(rec, t, self._bias_channels, mean, lower, upper)
         if rows['station']:
             station = np.asarray(rows['station'])
             for k in range(len(geometry.stations_m)):
@@ -238,9 +241,7 @@ class LiveView:
             series.send_profiles(rec, geometry, t, forces, radial)
         if rows['health']:
             health = np.asarray(rows['health'], dtype=float)
-            keys = ('real_time_factor', 'tick_time_ms', 'tick_time_max_ms',
-                    'iterations_per_step', 'ensemble_iterations_per_step', 'resets')
-            values = {key: health[:, 1 + i] for i, key in enumerate(keys)
+            values = {key: health[:, 1 + i] for i, key in enumerate(HEALTH_ENTITIES)
                       if np.isfinite(health[:, 1 + i]).any()}
             series.send_health(rec, health[:, 0], values)
         if self._events:

@@ -9,7 +9,8 @@ matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-MAX_FREQUENCY_HZ = 2.0
+from drill_twin.viz.figures import MAX_FREQUENCY_HZ, save_figure  # noqa: E402
+
 PANELS = {
     'rop_m_per_s': ('ROP', 'speed [m/s]', 'fig08_rop.png'),
     'weight_on_bit_n': ('weight on bit', 'force [N]', 'fig09a_weight_on_bit.png'),
@@ -56,10 +57,7 @@ def plot_study(result, directory: Path) -> list[Path]:
         right.set_xlabel('frequency [Hz]')
         right.set_ylabel(unit.replace('[', 'amplitude ['))
         right.legend(fontsize=7)
-        figure.tight_layout()
-        figure.savefig(directory / name, dpi=110)
-        plt.close(figure)
-        paths.append(directory / name)
+        paths.append(save_figure(figure, directory / name))
     paths.append(_realizations(result, directory / 'fig16_rop_realizations.png'))
     return paths
 
@@ -80,10 +78,7 @@ def _convergence(result, path: Path) -> Path:
     axis.set_xlabel('number of simulations')
     axis.set_ylabel('conv')
     axis.set_title('mean-square convergence (Eq. 54)', fontsize=10)
-    figure.tight_layout()
-    figure.savefig(path, dpi=110)
-    plt.close(figure)
-    return path
+    return save_figure(figure, path)
 
 
 def _realizations(result, path: Path, count: int = 12) -> Path:
@@ -98,7 +93,4 @@ def _realizations(result, path: Path, count: int = 12) -> Path:
     axis.set_title(title, fontsize=10)
     axis.set_xlabel('time [s]')
     axis.set_ylabel('speed [m/s]')
-    figure.tight_layout()
-    figure.savefig(path, dpi=110)
-    plt.close(figure)
-    return path
+    return save_figure(figure, path)

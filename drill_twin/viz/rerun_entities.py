@@ -111,6 +111,14 @@ LAW_ENTRIES = {'a1': ('a1', BLUE), 'a2': ('a2', ORANGE), 'a3': ('a3', GREEN),
                'a4': ('a4', RED), 'a5': ('a5', PURPLE)}
 """The estimated factors of the law's a1 ... a5 (assimilation, parameters 'law'), in message
 order, and their colours."""
+HEALTH_ENTITIES = {'real_time_factor': 'diagnostics/real_time_factor',
+                   'tick_time_ms': 'diagnostics/tick_time',
+                   'tick_time_max_ms': 'diagnostics/tick_time_max',
+                   'iterations_per_step': 'diagnostics/iterations',
+                   'ensemble_iterations_per_step': 'diagnostics/ensemble_iterations',
+                   'resets': 'diagnostics/resets'}
+"""The twin's health figures (keys of its /diagnostics status), in this order, and their
+entities."""
 CHANNEL_UNITS = {'top_speed': 'rad/s', 'top_torque': 'N m', 'hook_load': 'N',
                  'block_position': 'm', 'bit_speed': 'rad/s', 'torque_on_bit': 'N m',
                  'weight_on_bit': 'N'}

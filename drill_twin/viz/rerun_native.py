@@ -21,7 +21,7 @@ from drill_twin import interface as itf
 from drill_twin.config import build_config, ConfigError, load_config
 from drill_twin.viz import rerun_series as series
 from drill_twin.viz.rerun_blueprint import twin_blueprint
-from drill_twin.viz.rerun_entities import APPLICATION_ID, StringGeometry
+from drill_twin.viz.rerun_entities import APPLICATION_ID, HEALTH_ENTITIES, StringGeometry
 from drill_twin.viz.rerun_styles import log_styles
 from drill_twin.viz.run_columns import (
     BIAS_TOPICS, ESTIMATE_TOPICS, GERM_TOPICS, is_estimate, LAW_TOPICS, log_files, read_run,
@@ -83,12 +83,10 @@ def send_run(recording, run: RunColumns, geometry: StringGeometry) -> None:
         series.send_profiles(recording, geometry, profile_t, contact[:, 1:],
                              np.stack(radial, axis=1) if radial
                              else np.zeros((profile_t.size, 0)))
-    health = run.array('health', 7)
+    health = run.array('health', 1 + len(HEALTH_ENTITIES))
     if health.size:
-        keys = ('real_time_factor', 'tick_time_ms', 'tick_time_max_ms', 'iterations_per_step',
-                'ensemble_iterations_per_step', 'resets')
         series.send_health(recording, health[:, 0],
-                           {key: health[:, 1 + i] for i, key in enumerate(keys)})
+                           {key: health[:, 1 + i] for i, key in enumerate(HEALTH_ENTITIES)})
     for entity, lines in run.texts.items():
         lines = sorted(lines, key=lambda line: line[0])
         series.send_text(recording, entity, [line[0] for line in lines],
@@ -96,12 +94,9 @@ def send_run(recording, run: RunColumns, geometry: StringGeometry) -> None:
 
 
 def _send_ensemble(recording, run: RunColumns) -> None:
-    mean, lower, upper = (run.array(topic, 7) for topic in (
-        itf.ENSEMBLE_MEAN, itf.ENSEMBLE_LOWER, itf.ENSEMBLE_UPPER))
-    n = min(mean.shape[0], lower.shape[0], upper.shape[0])
-    if n == 0:
-        return
-    series.send_ensemble(recording, mean[:n, 0], mean[:n, 1:], lower[:n, 1:], upper[:n, 1:])
+    ensemble = _bounds(run, (itf.ENSEMBLE_MEAN, itf.ENSEMBLE_LOWER, itf.ENSEMBLE_UPPER), 6)
+    if ensemble is not None:
+        series.send_ensemble(recording, *ensemble)
 
 
 def _send_estimate(recording, run: RunColumns) -> None:
@@ -122,20 +117,28 @@ def _send_estimate(recording, run: RunColumns) -> None:
 
 
 def _send_germ(recording, run: RunColumns) -> None:
-    mean, lower, upper = (run.array(topic, 4) for topic in GERM_TOPICS)
+    """Send the estimated germ, law and sensor biases of a run's analyses, if any."""
+    germ = _bounds(run, GERM_TOPICS, 3)
+    if germ is not None:
+        series.send_germ(recording, *germ)
+    law = _bounds(run, LAW_TOPICS, 5)
+    if law is not None:
+        series.send_law(recording, *law)
+    bias = _bounds(run, BIAS_TOPICS, len(run.bias_channels))
+    if bias is not None and run.bias_channels:
+        t, mean, lower, upper = bias
+        series.send_bias(recording, t, run.bias_channels, mean, lower, upper)
+
+
+def _bounds(run: RunColumns, topics, width: int):
+    """
+    Return (t, mean, lower, upper) of a mean and its bounds, ``width`` values each.
+
+    The three series cut to their common length; None if it is 0.
+    """
+    mean, lower, upper = (run.array(topic, 1 + width) for topic in topics)
     n = min(mean.shape[0], lower.shape[0], upper.shape[0])
-    if n:
-        series.send_germ(recording, mean[:n, 0], mean[:n, 1:], lower[:n, 1:], upper[:n, 1:])
-    mean, lower, upper = (run.array(topic, 6) for topic in LAW_TOPICS)
-    n = min(mean.shape[0], lower.shape[0], upper.shape[0])
-    if n:
-        series.send_law(recording, mean[:n, 0], mean[:n, 1:], lower[:n, 1:], upper[:n, 1:])
-    b = len(run.bias_channels)
-    mean, lower, upper = (run.array(topic, 1 + b) for topic in BIAS_TOPICS)
-    n = min(mean.shape[0], lower.shape[0], upper.shape[0])
-    if n and b:
-        series.send_bias(recording, mean[:n, 0], run.bias_channels, mean[:n, 1:],
-                         lower[:n, 1:], upper[:n, 1:])
+    return (mean[:n, 0], mean[:n, 1:], lower[:n, 1:], upper[:n, 1:]) if n else None
 
 
 def write_rrd(source, rrd_path: str | os.PathLike, stations_m: Sequence[float] | None = None,

@@ -18,8 +18,9 @@ from rerun._unions import build_dense_union
 from rerun.encodings.tensor_data import TensorDataBatch
 
 from drill_twin.viz.rerun_entities import (
-    BAND_LINES, BLUE, ENSEMBLE_QUANTITIES, GERM_ENTRIES, GREEN, GREY, LAW_ENTRIES,
-    RPM_PER_RAD_PER_S, station_entity, StringGeometry, TIMELINE)
+    BAND_LINES, BLUE, ENSEMBLE_QUANTITIES, GERM_ENTRIES, GREEN, GREY, HEALTH_ENTITIES,
+    LAW_ENTRIES, RPM_PER_RAD_PER_S, station_entity, StringGeometry, TIMELINE)
+from drill_twin.viz.rerun_styles import log_bound_styles
 
 
 def _time(t_s) -> list:
@@ -109,11 +110,7 @@ def send_estimate(recording, t_s, mean, lower, upper, open_loop=None, truth=None
           scale * np.asarray(upper))
     send_scalars(recording, 'ensemble/speed/mean', t_s, scale * np.asarray(mean))
     if open_loop is not None:
-        recording.log('ensemble/speed/open_loop/mean', rr.SeriesLines(
-            names='open loop (mean)', colors=GREY, widths=1.2), static=True)
-        for bound in ('lower', 'upper'):
-            recording.log(f'ensemble/speed/open_loop/{bound}', rr.SeriesLines(
-                names='open loop (95 %)', colors=GREY, widths=0.6), static=True)
+        log_bound_styles(recording, 'ensemble/speed/open_loop', 'open loop', GREY, 1.2, 0.6)
         t_open, *values = open_loop
         for bound, series in zip(('mean', 'lower', 'upper'), values):
             send_scalars(recording, f'ensemble/speed/open_loop/{bound}', t_open,
@@ -130,10 +127,7 @@ def send_germ(recording, t_s, mean, lower, upper) -> None:
 
     Arrays (n, 3): G11, G12, G22 of the analysed members' mean, 2.5 % and 97.5 %.
     """
-    for column, key in enumerate(GERM_ENTRIES):
-        for bound, values in (('mean', mean), ('lower', lower), ('upper', upper)):
-            send_scalars(recording, f'ensemble/germ/{key}/{bound}', t_s,
-                         np.asarray(values, dtype=float)[:, column])
+    _send_bounds(recording, 'germ', GERM_ENTRIES, t_s, mean, lower, upper)
 
 
 def send_law(recording, t_s, mean, lower, upper) -> None:
@@ -142,10 +136,7 @@ def send_law(recording, t_s, mean, lower, upper) -> None:
 
     Arrays (n, 5): the analysed members' mean, 2.5 % and 97.5 % (1: the configured law).
     """
-    for column, key in enumerate(LAW_ENTRIES):
-        for bound, values in (('mean', mean), ('lower', lower), ('upper', upper)):
-            send_scalars(recording, f'ensemble/law/{key}/{bound}', t_s,
-                         np.asarray(values, dtype=float)[:, column])
+    _send_bounds(recording, 'law', LAW_ENTRIES, t_s, mean, lower, upper)
 
 
 def send_bias(recording, t_s, channels, mean, lower, upper) -> None:
@@ -155,14 +146,16 @@ def send_bias(recording, t_s, channels, mean, lower, upper) -> None:
     ``channels``: their names in column order; arrays (n, len(channels)), SI: the analysed
     members' mean, 2.5 % and 97.5 %. Each channel's series styles are logged with them.
     """
-    for column, channel in enumerate(channels):
-        recording.log(f'ensemble/bias/{channel}/mean', rr.SeriesLines(
-            names=f'{channel} bias (mean)', colors=BLUE, widths=2.0), static=True)
-        for bound in ('lower', 'upper'):
-            recording.log(f'ensemble/bias/{channel}/{bound}', rr.SeriesLines(
-                names=f'{channel} bias (95 %)', colors=BLUE, widths=0.8), static=True)
+    for channel in channels:
+        log_bound_styles(recording, f'ensemble/bias/{channel}', f'{channel} bias', BLUE)
+    _send_bounds(recording, 'bias', channels, t_s, mean, lower, upper)
+
+
+def _send_bounds(recording, group: str, keys, t_s, mean, lower, upper) -> None:
+    """Send ``ensemble/<group>/<key>/{mean,lower,upper}``: column k of the arrays (n, keys)."""
+    for column, key in enumerate(keys):
         for bound, values in (('mean', mean), ('lower', lower), ('upper', upper)):
-            send_scalars(recording, f'ensemble/bias/{channel}/{bound}', t_s,
+            send_scalars(recording, f'ensemble/{group}/{key}/{bound}', t_s,
                          np.asarray(values, dtype=float)[:, column])
 
 
@@ -256,18 +249,8 @@ def _bar_values(values: np.ndarray):
 
 
 def send_health(recording, t_s, values: dict[str, Sequence[float]]) -> None:
-    """
-    Health figures.
-
-    'real_time_factor', 'tick_time_ms', 'tick_time_max_ms', 'iterations_per_step',
-    'ensemble_iterations_per_step', 'resets' (any subset).
-    """
-    for key, entity in (('real_time_factor', 'diagnostics/real_time_factor'),
-                        ('tick_time_ms', 'diagnostics/tick_time'),
-                        ('tick_time_max_ms', 'diagnostics/tick_time_max'),
-                        ('iterations_per_step', 'diagnostics/iterations'),
-                        ('ensemble_iterations_per_step', 'diagnostics/ensemble_iterations'),
-                        ('resets', 'diagnostics/resets')):
+    """Send health figures: ``values`` holds any of :data:`HEALTH_ENTITIES`' keys."""
+    for key, entity in HEALTH_ENTITIES.items():
         if key in values:
             send_scalars(recording, entity, t_s, values[key])
 

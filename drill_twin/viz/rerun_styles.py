@@ -65,11 +65,7 @@ def log_styles(recording, geometry: StringGeometry) -> None:
             names='mean model', colors=ORANGE, widths=1.2), static=True)
     for group, entries in (('germ', GERM_ENTRIES), ('law', LAW_ENTRIES)):
         for key, (name, colour) in entries.items():
-            recording.log(f'ensemble/{group}/{key}/mean', rr.SeriesLines(
-                names=f'{name} (mean)', colors=colour, widths=2.0), static=True)
-            for bound in ('lower', 'upper'):
-                recording.log(f'ensemble/{group}/{key}/{bound}', rr.SeriesLines(
-                    names=f'{name} (95 %)', colors=colour, widths=0.8), static=True)
+            log_bound_styles(recording, f'ensemble/{group}/{key}', name, colour)
     for x_m, outer_m, gap_m in zip(geometry.stations_m, geometry.station_outer_radius_m,
                                    geometry.station_clearance_m):
         _log_cross_section(recording, station_entity(x_m), geometry.borehole_radius_m,
@@ -81,6 +77,16 @@ def log_styles(recording, geometry: StringGeometry) -> None:
     _log_data_styles(recording, geometry)
     recording.log('lateral/help', rr.TextDocument(LATERAL_HELP.format(trail=TRAIL_S),
                                                   media_type='text/plain'), static=True)
+
+
+def log_bound_styles(recording, entity: str, name: str, colour, mean_width: float = 2.0,
+                     bound_width: float = 0.8) -> None:
+    """Log the styles of an estimate ``<entity>/mean`` and its 95 % ``<entity>/{lower,upper}``."""
+    recording.log(f'{entity}/mean', rr.SeriesLines(
+        names=f'{name} (mean)', colors=colour, widths=mean_width), static=True)
+    for bound in ('lower', 'upper'):
+        recording.log(f'{entity}/{bound}', rr.SeriesLines(
+            names=f'{name} (95 %)', colors=colour, widths=bound_width), static=True)
 
 
 def _log_cross_section(recording, entity: str, borehole_m: float, outer_m: float,

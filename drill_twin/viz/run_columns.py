@@ -24,6 +24,7 @@ from drill_twin import interface as itf
 from drill_twin.recording import cdr, reader
 from drill_twin.recording.message_types import import_message_class
 from drill_twin.recording.reader import iter_raw, read_metadata
+from drill_twin.viz.rerun_entities import HEALTH_ENTITIES
 
 PROFILE_RATE_HZ = 10.0
 """Samples per second of run time for the along-the-depth bar charts."""
@@ -177,8 +178,7 @@ def _diagnostics(run: RunColumns, type_name: str, data: bytes, t_s: float) -> No
         values = {item.key: item.value for item in status.values}
         if status.name == HEALTH_NAME:
             row = [t_s]
-            for key in ('real_time_factor', 'tick_time_ms', 'tick_time_max_ms',
-                        'iterations_per_step', 'ensemble_iterations_per_step', 'resets'):
+            for key in HEALTH_ENTITIES:
                 try:
                     row.append(float(values[key]))
                 except (KeyError, ValueError):

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 import yaml
-from mcap.reader import make_reader, NonSeekingReader
+from mcap.reader import make_reader
 from mcap_ros2.reader import read_ros2_messages
 from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import Reader as Rosbag2Reader
@@ -28,6 +28,7 @@ from drill_twin.recording.log_metadata import (LogMetadataError, RECORD_NAME,
                                                TwinLogMetadata)
 from drill_twin.recording.schemas import type_hash
 from synthetic import synthetic_messages
+from test_recording_mcap_log import non_seeking_prefix
 from drill_twin.recording.topics import twin_topics
 
 STATIONS_M = (700.0, 1590.0)
@@ -199,13 +200,7 @@ def test_cut_split_is_read_up_to_its_last_complete_chunk(killed_bag):
     assert not reader.is_complete(cut)
     with open(cut, 'rb') as stream, pytest.raises(Exception):    # noqa: B017 - no footer
         list(make_reader(stream).iter_messages())
-    prefix = []
-    with open(cut, 'rb') as stream:
-        try:
-            for _, _, message in NonSeekingReader(stream).iter_messages(log_time_order=False):
-                prefix.append(message.log_time)
-        except Exception:                                 # noqa: B902 - the cut-off tail
-            pass
+    prefix = non_seeking_prefix(cut)
     assert len(prefix) >= 300                 # the 4th split's messages 1500-1799, flushed
     ours = [m.log_time_ns for m in reader.iter_messages(cut)]
     assert ours == prefix

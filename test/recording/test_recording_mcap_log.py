@@ -291,13 +291,7 @@ def test_sigkill_leaves_a_readable_prefix(tmp_path):
     assert reader.read_metadata(path) == {'drill_twin': {'seed': '7'}}
     assert reader.topics(path) == {'/drill_twin/kpi/rop_m_per_h': 'std_msgs/msg/Float64'}
     # mcap's own non-seeking reader reads the same prefix before hitting the cut
-    prefix = []
-    with open(path, 'rb') as stream:
-        try:
-            for _, _, message in NonSeekingReader(stream).iter_messages(log_time_order=False):
-                prefix.append(message.log_time)
-        except Exception:                                 # noqa: B902 - the cut-off tail
-            pass
+    prefix = non_seeking_prefix(path)
     assert len(prefix) >= flushed
     # and a recovered copy is a complete file for indexed readers
     recovered = tmp_path / 'recovered.mcap'
@@ -315,6 +309,18 @@ def test_importing_the_recording_layer_does_not_import_rclpy(tmp_path):
             'assert "rclpy" not in sys.modules, "rclpy imported"\n'
             'assert "rerun" not in sys.modules, "rerun imported"\n')
     subprocess.run([sys.executable, '-c', code], check=True, env=child_env(tmp_path))
+
+
+def non_seeking_prefix(path) -> list[int]:
+    """Log times of the messages mcap's own non-seeking reader reads before a cut (ns)."""
+    prefix = []
+    with open(path, 'rb') as stream:
+        try:
+            for _, _, message in NonSeekingReader(stream).iter_messages(log_time_order=False):
+                prefix.append(message.log_time)
+        except Exception:                                 # noqa: B902 - the cut-off tail
+            pass
+    return prefix
 
 
 def test_per_message_cost_is_small(tmp_path):

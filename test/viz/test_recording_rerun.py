@@ -140,28 +140,17 @@ def test_band_fills_from_lower_to_upper():
     assert set(band_style.names.as_arrow_array().to_pylist()) == {'95 % band'}
 
 
-def test_the_estimated_germ_is_sent_entry_by_entry():
+@pytest.mark.parametrize('group, keys', [('germ', ('g11', 'g12', 'g22')),
+                                         ('law', ('a1', 'a2', 'a3', 'a4', 'a5'))])
+def test_the_estimated_germ_and_law_are_sent_entry_by_entry(group, keys):
     rec = Capture()
-    mean = np.array([[1.0, 0.1, 1.2], [0.9, 0.0, 1.1]])
-    series.send_germ(rec, [1.0, 2.0], mean, mean - 0.1, mean + 0.2)
-    for column, key in enumerate(('g11', 'g12', 'g22')):
-        assert np.allclose(np.ravel(rec.rows(f'ensemble/germ/{key}/mean')[1]), mean[:, column])
-        assert np.allclose(np.ravel(rec.rows(f'ensemble/germ/{key}/lower')[1]),
-                           mean[:, column] - 0.1)
-        assert np.allclose(np.ravel(rec.rows(f'ensemble/germ/{key}/upper')[1]),
-                           mean[:, column] + 0.2)
-
-
-def test_the_estimated_law_is_sent_factor_by_factor():
-    rec = Capture()
-    mean = np.array([[1.0, 0.9, 1.1, 1.2, 0.8], [1.1, 0.9, 1.0, 1.3, 0.7]])
-    series.send_law(rec, [1.0, 2.0], mean, mean - 0.1, mean + 0.2)
-    for column, key in enumerate(('a1', 'a2', 'a3', 'a4', 'a5')):
-        assert np.allclose(np.ravel(rec.rows(f'ensemble/law/{key}/mean')[1]), mean[:, column])
-        assert np.allclose(np.ravel(rec.rows(f'ensemble/law/{key}/lower')[1]),
-                           mean[:, column] - 0.1)
-        assert np.allclose(np.ravel(rec.rows(f'ensemble/law/{key}/upper')[1]),
-                           mean[:, column] + 0.2)
+    mean = np.array([[1.0, 0.1, 1.2, 0.9, 0.8], [0.9, 0.0, 1.1, 1.3, 0.7]])[:, :len(keys)]
+    send = series.send_germ if group == 'germ' else series.send_law
+    send(rec, [1.0, 2.0], mean, mean - 0.1, mean + 0.2)
+    for column, key in enumerate(keys):
+        for bound, expected in (('mean', mean), ('lower', mean - 0.1), ('upper', mean + 0.2)):
+            assert np.allclose(np.ravel(rec.rows(f'ensemble/{group}/{key}/{bound}')[1]),
+                               expected[:, column])
 
 
 def test_orbit_segments_and_wall():
