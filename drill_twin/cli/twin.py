@@ -143,10 +143,9 @@ def run(args: argparse.Namespace) -> int:
         if args.web and not args.view:
             raise UsageError('--web: only with --view (the live viewer)')
         if args.view and not args.web:
-            from drill_twin.viz.live_view import NO_DISPLAY_HINT
-            from drill_twin.viz.rerun_view import has_display
+            from drill_twin.viz.rerun_view import has_display, LIVE_NO_DISPLAY_HINT
             if not has_display():
-                raise UsageError(NO_DISPLAY_HINT)
+                raise UsageError(LIVE_NO_DISPLAY_HINT)
         checked_start(ros)
         from drill_twin.ros.twin_node import run as run_node
 

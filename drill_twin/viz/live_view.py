@@ -24,10 +24,6 @@ from drill_twin.viz.rerun_entities import APPLICATION_ID, HEALTH_ENTITIES, Strin
 from drill_twin.viz.rerun_styles import log_styles
 from drill_twin.viz.rerun_view import viewer_command
 
-NO_DISPLAY_HINT = ('--view: no display (DISPLAY and WAYLAND_DISPLAY are unset): add --web to '
-                   "serve rerun's web viewer on localhost, or look at the log afterwards with "
-                   '`drill-twin view LOG --rrd OUT.rrd`')
-
 _BIT_FIELDS = ('depth_m', 'rop_m_per_s', 'weight_on_bit_n', 'angle_rad', 'speed_rad_per_s',
                'torque_on_bit_nm')
 

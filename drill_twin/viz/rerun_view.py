@@ -35,6 +35,10 @@ DEFAULT_GRPC_PORT = 9876
 DEFAULT_WEB_PORT = 9090
 NO_DISPLAY_HINT = ('no display (DISPLAY and WAYLAND_DISPLAY are unset): write a file with '
                    '--rrd OUT.rrd, or serve the web viewer on localhost with --web')
+LIVE_NO_DISPLAY_HINT = ('--view: no display (DISPLAY and WAYLAND_DISPLAY are unset): add '
+                        "--web to serve rerun's web viewer on localhost, or look at the log "
+                        'afterwards with `drill-twin view LOG --rrd OUT.rrd`')
+"""What ``drill-twin twin --view`` says without a display."""
 
 
 def has_display(environ=None) -> bool:
