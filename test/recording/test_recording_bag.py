@@ -28,7 +28,7 @@ from drill_twin.recording.log_metadata import (LogMetadataError, RECORD_NAME,
                                                TwinLogMetadata)
 from drill_twin.recording.schemas import type_hash
 from synthetic import synthetic_messages
-from test_recording_mcap_log import non_seeking_prefix
+from mcap_probe import non_seeking_prefix
 from drill_twin.recording.topics import twin_topics
 
 STATIONS_M = (700.0, 1590.0)

@@ -7,7 +7,7 @@ import sys
 import time
 from types import SimpleNamespace
 
-from mcap.reader import make_reader, NonSeekingReader
+from mcap.reader import make_reader
 import numpy as np
 from mcap_ros2.reader import read_ros2_messages
 import pytest
@@ -20,6 +20,7 @@ from drill_twin.recording.mcap_log import McapLog
 from drill_twin.recording.message_types import import_message_class
 from drill_twin.recording.recovery import recover_log
 from drill_twin.recording.schemas import ros2msg_schema, type_hash
+from mcap_probe import non_seeking_prefix
 from synthetic import synthetic_messages
 from drill_twin.recording.topics import twin_topics
 
@@ -309,18 +310,6 @@ def test_importing_the_recording_layer_does_not_import_rclpy(tmp_path):
             'assert "rclpy" not in sys.modules, "rclpy imported"\n'
             'assert "rerun" not in sys.modules, "rerun imported"\n')
     subprocess.run([sys.executable, '-c', code], check=True, env=child_env(tmp_path))
-
-
-def non_seeking_prefix(path) -> list[int]:
-    """Log times of the messages mcap's own non-seeking reader reads before a cut (ns)."""
-    prefix = []
-    with open(path, 'rb') as stream:
-        try:
-            for _, _, message in NonSeekingReader(stream).iter_messages(log_time_order=False):
-                prefix.append(message.log_time)
-        except Exception:                                 # noqa: B902 - the cut-off tail
-            pass
-    return prefix
 
 
 def test_per_message_cost_is_small(tmp_path):
