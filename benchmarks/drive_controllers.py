@@ -38,7 +38,8 @@ def run_point(drive: str, wob_kn: float, speed_hz: float, duration_s: float,
     from drill_twin.config import load_config
     from drill_twin.analysis import kpi
     from drill_twin.integrator.simulator import Simulator, SimulationDiverged
-    from drill_twin.rig.top_drive import attach_top_drive
+    from drill_twin.rig.rig import Rig
+    from drill_twin.rig.top_drive import TopDriveMode
 
     overrides = TORSIONAL_AXIAL + [f'bit_rock.static_weight_on_bit_n={-1e3 * wob_kn}',
                                    f'operation.top_drive_speed_hz={speed_hz}']
@@ -49,17 +50,18 @@ def run_point(drive: str, wob_kn: float, speed_hz: float, duration_s: float,
            'failed': 0}
     start = time.perf_counter()
     simulator = Simulator(load_config(overrides=overrides))
-    attach_top_drive(simulator)
+    rig = Rig(simulator)
     steps = int(round(duration_s / simulator.dt))
     first = steps - int(round(window_s / simulator.dt))
     bit, top, motor, rop = [], [], [], []
     try:
         for k in range(1, steps + 1):
-            simulator.step()
+            rig.step()
             if k >= first:
                 bit.append(simulator.last.bit_speed_rad_per_s[0])
-                top.append(simulator.top_drive.speed_rad_per_s)
-                motor.append(getattr(simulator.top_drive, 'motor_torque_nm', np.nan))
+                top.append(rig.top_drive.speed_rad_per_s)
+                motor.append(rig.top_drive.state.motor_torque_nm
+                             if rig.top_drive_mode is TopDriveMode.DYNAMIC else np.nan)
                 rop.append(simulator.last.rop_m_per_s[0])
     except SimulationDiverged:
         row['failed'] = 1

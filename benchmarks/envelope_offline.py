@@ -28,13 +28,14 @@ from drill_twin.config import load_config
 from drill_twin.model.reduced_system import build_reduced_system
 from drill_twin.integrator.simulator import SimulationDiverged, Simulator
 from drill_twin.modal.reduced_basis import modal_analysis
+from drill_twin.rig.rig import Rig
 from drill_twin.uncertainty.germ import germs_for_realizations
 
 
-def phases(simulator: Simulator):
+def phases(rig: Rig):
     """(name, seconds, top speed or None, hook load or None)."""
-    static = simulator.hook_load_command_n
-    weight = static - simulator.config.bit_rock.static_weight_on_bit_n
+    static = rig.hook_load_command_n
+    weight = static - rig.config.bit_rock.static_weight_on_bit_n
     return [('paper point', 20, 5.2, static), ('15 rad/s', 40, 15.0, None),
             ('hook -50 kN', 50, None, static - 5e4), ('hook -150 kN', 90, None, static - 1.5e5),
             ('stopped on bottom', 30, 0.0, None), ('restarted 15 rad/s', 30, 15.0, None),
@@ -58,22 +59,23 @@ def main() -> None:
         germs = germs_for_realizations(args.delta, args.seed, range(args.members))
         germs[0] = np.eye(2)
         simulator = Simulator(config, members=args.members, germs=germs, system=system)
+        rig = Rig(simulator)
         restarts = 0
         start = time.perf_counter()
         print(f'dt = {args.time_step} s, delta = {args.delta}, {args.members} members')
-        for name, seconds, speed, hook in phases(simulator):
+        for name, seconds, speed, hook in phases(rig):
             if speed is not None:
-                simulator.set_top_drive_speed(speed)
+                rig.set_top_drive_speed(speed)
             if hook is not None:
-                simulator.set_hook_load(hook)
+                rig.set_hook_load(hook)
             retries, substeps, lowest, off = simulator.retries, simulator.substeps, np.inf, 0
             phase_restarts = 0
             for _ in range(int(round(args.scale * seconds / simulator.dt))):
                 try:
-                    simulator.step()
+                    rig.step()
                 except SimulationDiverged as error:        # what the twin would do
                     phase_restarts += len(error.members)
-                    simulator.reset_members(error.members)
+                    rig.reset_members(error.members)
                     continue
                 lowest = min(lowest, float(simulator.last.bit_speed_rad_per_s.min()))
                 off = max(off, int(np.sum(~simulator.on_bottom())))

@@ -31,6 +31,7 @@ def landing(time_step_s: float, axial_modes: int, drop_n: float, lift_n: float):
     from drill_twin.config import load_config
     from drill_twin.integrator.simulator import Simulator
     from drill_twin.integrator.envelope import StringEnvelope
+    from drill_twin.rig.rig import Rig
     config = load_config(None, [
         f'operation.top_drive_speed_hz={2 / (2 * math.pi)}',
         'initial_conditions.steady_twist=true', 'initial_conditions.lateral_deflection_m=0',
@@ -38,14 +39,15 @@ def landing(time_step_s: float, axial_modes: int, drop_n: float, lift_n: float):
         'physics.kinetic_coupling=false', f'integration.time_step_s={time_step_s}',
         f'reduced_basis.axial_modes={axial_modes}'])
     simulator = Simulator(config)
+    rig = Rig(simulator)
     prestress = simulator.system.model.prestress
     weight = prestress.hook_load_n - config.bit_rock.static_weight_on_bit_n
 
     def run(seconds, hook_load_n):
-        simulator.set_hook_load(hook_load_n)
+        rig.set_hook_load(hook_load_n)
         rows = []
         for _ in range(int(round(seconds / time_step_s))):
-            simulator.step()
+            rig.step()
             o = simulator.observe(detailed=1)
             rows.append((o.weight_on_bit_n[0], o.bit_axial_velocity_m_per_s[0]))
         return np.array(rows)

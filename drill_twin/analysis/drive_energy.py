@@ -1,7 +1,7 @@
 """
 The torsional energy budget of the top drive and the string (issue 13, docs/DRIVES.md).
 
-For member 0 of a simulator with a dynamic top drive, step by step:
+For member 0 of a simulator driven by a rig's dynamic top drive, step by step:
 
     motor work  = change of the drive's kinetic energy + work done on the string's top,
     top work + work of the torsional forces (bit, wall, coupling) = change of the string's
@@ -39,11 +39,16 @@ class EnergyBudget:
 
 
 class EnergyMeter:
-    """Call ``start()`` once, then ``record()`` after every ``Simulator.step``."""
+    """
+    The budget of ``rig``'s dynamic top drive and its string (module docstring).
 
-    def __init__(self, simulator):
-        self.simulator = simulator
-        self.drive = simulator.top_drive
+    Call ``start()`` once, then ``record()`` after every step (:meth:`Rig.step
+    <drill_twin.rig.rig.Rig.step>`). The drive is the rig's when the meter is built.
+    """
+
+    def __init__(self, rig):
+        self.simulator = rig.simulator
+        self.drive = rig.top_drive
         self.string = self.drive.string
         self.budget = EnergyBudget()
         self._last = None
@@ -72,7 +77,7 @@ class EnergyMeter:
         now, last, budget = self._instant(), self._last, self.budget
         dt = now['time'] - last['time']
         mean_speed = 0.5 * (now['omega'] + last['omega'])
-        budget.motor_work_j += self.drive.motor_torque_nm * mean_speed * dt
+        budget.motor_work_j += self.drive.state.motor_torque_nm * mean_speed * dt
         budget.force_work_j += 0.5 * (now['force_w'] + last['force_w']) * dt
         budget.dissipation_j += 0.5 * (now['dissipation_w'] + last['dissipation_w']) * dt
         budget.drive_energy_change_j += now['drive'] - last['drive']

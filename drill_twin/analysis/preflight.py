@@ -36,6 +36,7 @@ from drill_twin.config.schema import DrillStringConfig
 from drill_twin.model.bit_rock import BitRockLaw
 from drill_twin.model.reduced_system import ReducedSystem, build_reduced_system
 from drill_twin.integrator.simulator import SimulationDiverged, Simulator
+from drill_twin.rig.rig import Rig
 from drill_twin.fem.model import FiniteElementModel
 from drill_twin.modal.reduced_basis import ReducedBasis, modal_analysis
 
@@ -225,11 +226,12 @@ def check_short_run(config: DrillStringConfig, system: ReducedSystem,
     speed).
     """
     simulator = Simulator(config, system=system)
+    rig = Rig(simulator)
     steps = max(1, math.ceil(duration_s / simulator.dt - 1e-9))
     with threadpool_limits(limits=1, user_api='blas'):          # small matrices (see run.py)
         for _ in range(steps):
             try:
-                simulator.step()
+                rig.step()
             except SimulationDiverged as error:
                 raise PreflightError('', f'it cannot be integrated: {error}') from None
             _check_bit(simulator, duration_s)

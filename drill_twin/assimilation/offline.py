@@ -28,6 +28,7 @@ from drill_twin.assimilation.state import law_scales_for_members
 from drill_twin.config.schema import DrillStringConfig
 from drill_twin.integrator.simulator import Simulator
 from drill_twin.integrator.stepping import GuardedSimulator
+from drill_twin.rig.rig import Rig
 from drill_twin.uncertainty.germ import germs_for_realizations
 
 
@@ -132,10 +133,11 @@ def run_filter(config: DrillStringConfig, settings: AssimilationConfig, log: Rig
                                 * copies)
     sim = Simulator(config, copies * n, germs=np.concatenate([germs] * copies), system=system,
                     law_scales=scales)
+    rig = Rig(sim)
     rng = np.random.default_rng(np.random.SeedSequence(spec.seed, spawn_key=(1,)))
     sequential = SequentialFilter(sim, n, settings, rng)
     guarded = GuardedSimulator(     # a stalled member: a copy of another of its half
-        sim, first_member=1, name='ensemble members',
+        rig, first_member=1, name='ensemble members',
         on_stalled=lambda stalled: sequential.replace_stalled(
             stalled, [range(n), range(n, 2 * n)][:copies]))
     dt = sim.dt
@@ -154,8 +156,8 @@ def run_filter(config: DrillStringConfig, settings: AssimilationConfig, log: Rig
     next_arrival = 0
     for step in range(1, steps + 1):
         start = (step - 1) * dt
-        sim.set_top_drive_speed(command_at(log.speed_commands, start))
-        sim.set_hook_load(command_at(log.hook_commands, start))
+        rig.set_top_drive_speed(command_at(log.speed_commands, start))
+        rig.set_hook_load(command_at(log.hook_commands, start))
         guarded.step()
         time = step * dt
         while next_arrival < len(arrivals) and arrivals[next_arrival][0] <= time + 1e-9:

@@ -20,17 +20,18 @@ from drill_twin.assimilation.settings import AssimilationConfig
 from drill_twin.config.schema import DrillStringConfig
 from drill_twin.integrator.simulator import Simulator
 from drill_twin.integrator.stepping import GuardedSimulator
+from drill_twin.rig.rig import Rig
 
 
-def schedule_commands(simulator: Simulator, settings: AssimilationConfig, duration_s: float):
+def schedule_commands(rig: Rig, settings: AssimilationConfig, duration_s: float):
     """
     Return (speed_commands, hook_commands) from the schedule.
 
-    Each is a (c, 2) array of (time s, value), starting with the simulator's initial commands
-    at t = 0.
+    Each is a (c, 2) array of (time s, value), starting with the rig's initial commands at
+    t = 0.
     """
-    speed = [(0.0, simulator.top_speed_command_rad_per_s)]
-    hook0 = simulator.hook_load_command_n
+    speed = [(0.0, rig.commands.top_speed_rad_per_s)]
+    hook0 = rig.commands.hook_load_n
     hook = [(0.0, hook0)]
     for point in settings.rig.schedule:
         if point.time_s > duration_s:
@@ -54,9 +55,10 @@ def run_rig(config: DrillStringConfig, settings: AssimilationConfig, duration_s:
     :param progress: called with the fraction done, or None.
     """
     sim = Simulator(config, 1, germs=None if germ is None else germ[None], system=system)
-    guarded = GuardedSimulator(sim, first_member=0, name='the rig')
+    rig = Rig(sim)
+    guarded = GuardedSimulator(rig, first_member=0, name='the rig')
     rng = np.random.default_rng(settings.rig.seed)
-    speed_commands, hook_commands = schedule_commands(sim, settings, duration_s)
+    speed_commands, hook_commands = schedule_commands(rig, settings, duration_s)
     dt = sim.dt
     steps = int(round(duration_s / dt))
     duration_s = steps * dt
@@ -75,10 +77,10 @@ def run_rig(config: DrillStringConfig, settings: AssimilationConfig, duration_s:
     for step in range(1, steps + 1):
         start = (step - 1) * dt
         while speed_index < len(speed_commands) and speed_commands[speed_index, 0] <= start + 1e-9:
-            sim.set_top_drive_speed(speed_commands[speed_index, 1])
+            rig.set_top_drive_speed(speed_commands[speed_index, 1])
             speed_index += 1
         while hook_index < len(hook_commands) and hook_commands[hook_index, 0] <= start + 1e-9:
-            sim.set_hook_load(hook_commands[hook_index, 1])
+            rig.set_hook_load(hook_commands[hook_index, 1])
             hook_index += 1
         guarded.step()
         if step in due or step in truth_steps:

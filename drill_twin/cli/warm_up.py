@@ -25,6 +25,7 @@ def warm_up(steps: int = 3) -> float:
     from drill_twin.config.loader import load_config
     from drill_twin.analysis import kpi
     from drill_twin.integrator.simulator import Simulator
+    from drill_twin.rig.rig import Rig
     from drill_twin.uncertainty.germ import germs_for_realizations
 
     start = time.perf_counter()
@@ -33,8 +34,9 @@ def warm_up(steps: int = 3) -> float:
     batch = Simulator(config, members=4, germs=germs_for_realizations(0.1, 0, range(4)),
                       system=mean.system)
     for simulator in (mean, batch):
+        rig = Rig(simulator)
         for _ in range(steps):
-            simulator.step()
+            rig.step()
         simulator.observe()
     _observe_layouts(batch)
     kpi.window_means(np.zeros(2), 0.0, *np.zeros((4, 2)))     # the twin's KPI window

@@ -6,17 +6,20 @@ History`) both call :func:`observe_into`: the observer's rows of q, q' and q'' (
 each), the derived bit quantities (:func:`derive`), the bit's forces, the wall contact's
 reductions, the events so far and the stations, written at record k of the arrays
 :class:`ObservedArrays` holds. ``observe`` hands out views of a one-record set; the recorder
-has it write straight into its buffers. Before (2026-12-03), an observation was about thirty
-small numpy operations and a recorded one thirty more, each costing more than its arithmetic
-after a step has evicted numpy's working set from the cache: 57 + 29 us per record of the
-mean model in the time loop, measured (its compiled step takes about 85 us); now 19 us.
+has it write straight into its buffers. One compiled call costs about 19 us for the mean
+model (thirty small numpy operations cost three times that once a step has evicted numpy's
+working set from the cache).
+
+The torque the string takes at its top is :func:`string_torque_nm`, the torque balance of
+the whole string; :func:`derive` compiles it in, and the rig's dynamic top drive measures with
+it too (:meth:`~drill_twin.integrator.observation.ObserverRows.string_torque_nm`).
 """
 from __future__ import annotations
 
 import numpy as np
 
 from drill_twin.model.bit_rock import maximum
-from drill_twin.numerics.compiled import kernel
+from drill_twin.numerics.compiled import inline, kernel
 from drill_twin.integrator.newmark_kernel import on_rock
 
 DERIVED = ('depth_m', 'rop_m_per_s', 'angle_rad', 'depth_of_cut_m_per_rad', 'hole_depth_m',
@@ -38,6 +41,22 @@ ON_BOTTOM, LIFTED = range(2)
 STATION_RECORDS = ('station_displacement_m', 'station_velocity_m_per_s',
                    'station_acceleration_m_per_s2', 'station_spin_rate_rad_per_s')
 """Rows of :class:`ObservedArrays`'s ``stations`` (Observation attributes)."""
+
+
+def string_torque_nm(acceleration_mass, rate_damping, torsional_force):
+    """
+    Return T_s, the torque the string takes at its top (N m, > 0 when the drive drives it).
+
+    The torque balance of the whole string about x (the rigid rotation costs no strain):
+    T_s = (M psi) . (a + psi alpha) + (C psi) . (v + psi omega) - sum of the non-linear
+    torsional forces. ``acceleration_mass`` = (M psi) . (a + psi alpha) (N m),
+    ``rate_damping`` = (C psi) . (v + psi omega) (N m), ``torsional_force`` the sum of f_NL
+    over the torsional DOFs (N m). Scalars; plain Python here, compiled into :func:`derive`.
+    """
+    return (acceleration_mass + rate_damping) - torsional_force
+
+
+_string_torque = inline(string_torque_nm)
 
 
 class ObservedArrays:
@@ -88,7 +107,8 @@ def derive(q_rows, rate_rows, acceleration_rows, driven, top_speed, top_accelera
         string = 0.0
         for j in range(torsion_start, torsion_stop):
             string += full[i, j]
-        derived[5, i] = (acceleration_rows[i, mass] + rate_rows[i, damping]) - string
+        derived[5, i] = _string_torque(acceleration_rows[i, mass], rate_rows[i, damping],
+                                       string)
     for i in range(q_rows.shape[0]):
         bit_u = q_rows[i, bit_u_column]
         derived[0, i] = length_m + bit_u
@@ -111,7 +131,7 @@ def observe_into(k, q, rate, acceleration, detailed, operator, hook, fields_star
     Write an observation at record ``k`` of (floats, flags, touching_nodes, stations).
 
     The :class:`ObservedArrays` layout. q, rate, acceleration (m, n) the state, operator (n,
-    c) the observer's rows (``Simulator``'s ``_Observer``: hook column, stations' fields from
+    c) the observer's rows (``ObserverRows``: hook column, stations' fields from
     fields_start and spins from spins_start, station-major), detailed <= m the members whose
     top torque, hook and stations are observed; the rest as :func:`derive`'s arguments, but
     hole (m,) (the hole bottom as the bit's axial displacement, used when has_hole, else the

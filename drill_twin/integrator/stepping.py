@@ -2,7 +2,9 @@
 Stepping a batch that may diverge or break physics: restart the failed members, go on.
 
 The twin must never stop its clock or publish a failed or implausible step.
-:class:`GuardedSimulator` wraps a :class:`~drill_twin.integrator.simulator.Simulator`:
+:class:`GuardedSimulator` steps a :class:`~drill_twin.integrator.simulator.Simulator` through
+what drives it (a rig, :class:`~drill_twin.rig.rig.Rig`: anything with ``simulator``, ``step()``
+that puts itself back when the simulator refuses the step, and ``reset_members(members)``):
 
 - a step that diverges has its failed members restarted from a safe state (their depth
   kept) and is retried once; if that fails too the step is skipped;
@@ -22,8 +24,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from drill_twin.integrator.simulator import SimulationDiverged, Simulator
 from drill_twin.integrator.guard import StateGuard
+from drill_twin.integrator.simulator import SimulationDiverged
 
 
 class TwinStalled(RuntimeError):
@@ -62,7 +64,7 @@ class GuardedSimulator:
     """
     A simulator whose failed or implausible steps restart the members concerned.
 
-    :param simulator: the batch.
+    :param driver: what steps the batch (module docstring): its ``simulator`` is the batch.
     :param first_member: the number of its member 0 in event messages (the mean model is 0,
         the ensemble members 1..N).
     :param name: what the batch is called in messages when it holds one member
@@ -80,9 +82,11 @@ class GuardedSimulator:
     failed retry), ``breaches`` (member steps that broke a bound).
     """
 
-    def __init__(self, simulator: Simulator, first_member: int, name: str,
+    def __init__(self, driver, first_member: int, name: str,
                  guard: StateGuard | None = None, on_stalled=None,
                  replaced_with: str = 'its state and law'):
+        simulator = driver.simulator
+        self.driver = driver
         self.simulator = simulator
         self.on_stalled = on_stalled
         self.replaced_with = replaced_with
@@ -104,7 +108,7 @@ class GuardedSimulator:
         for _ in range(2):
             before = self.simulator.state.copy()
             try:
-                result = self.simulator.step()
+                result = self.driver.step()
             except SimulationDiverged as error:
                 self._recover(error)
                 continue
@@ -126,7 +130,7 @@ class GuardedSimulator:
 
     def _recover(self, error: SimulationDiverged) -> None:
         members = list(error.members) or list(range(self.simulator.members))
-        self.simulator.reset_members(members)
+        self.driver.reset_members(members)
         self.resets += len(members)
         which, numbers = self._which(members)
         self.events.append(TwinEvent(
@@ -154,11 +158,11 @@ class GuardedSimulator:
                   'bit_speed_rad_per_s': float(breach.bit_speed_rad_per_s[m]),
                   'rop_m_per_s': float(breach.rop_m_per_s[m])} for m in members}
         self._restore(members, before)
-        self.simulator.reset_members(members)
+        self.driver.reset_members(members)
         still = [m for m in self.guard.check(self.simulator) if m in reasons]
         if still:                                 # even the safe state is implausible
             self._restore(still, before)
-            self.simulator.last = self.simulator._evaluate(state)
+            self.simulator.reevaluate()
         self.resets += len(members)
         self.breaches += len(members)
         for member in members:

@@ -1,1 +1,1 @@
-"""The rig's machines: top drive and its controllers, drawworks, surface readings."""
+"""The rig: commands turned into the simulator's inputs (``Rig``), its drives, surface readings."""

@@ -28,24 +28,30 @@ import numpy as np
 
 from drill_twin.rig.top_drive import characteristic_impedance
 
+CONTROLLERS = ('stiff', 'soft_torque', 'impedance')
+"""The controllers' names (``top_drive.controller``)."""
+
 
 class Stiff:
     """omega_sp = omega_ref."""
 
     name = 'stiff'
 
-    def law(self, command_rad_per_s, drive, dt, torque_0, slope):
+    def law(self, command_rad_per_s, mean_torque_nm, dt, torque_0, slope):
+        """Return (s_0, s_1) of the set-point omega_sp = s_0 + s_1 omega_{n+1} (rad/s, -)."""
         return command_rad_per_s, 0.0
 
-    def update(self, string_torque_nm, dt):
-        pass
+    def mean_after(self, mean_torque_nm, string_torque_nm, dt):
+        """Return the slow mean of T_s after the step (N m): unused, kept as it is."""
+        return mean_torque_nm
 
 
 class TorqueFeedback:
     """
     Set omega_sp = omega_ref - HP(T_s) / c, HP(T) = T - LP(T).
 
-    LP a first-order low-pass of time constant tau (s); c in N m s/rad.
+    LP a first-order low-pass of time constant tau (s); c in N m s/rad. The low-pass's state,
+    the slow mean <T_s>, is the drive's (:class:`~drill_twin.rig.top_drive.DynamicState`).
     """
 
     name = 'torque_feedback'
@@ -53,21 +59,20 @@ class TorqueFeedback:
     def __init__(self, impedance_nm_s_per_rad: float, time_constant_s: float):
         self.impedance = float(impedance_nm_s_per_rad)
         self.time_constant_s = float(time_constant_s)
-        self.mean_torque_nm = None
 
     def _weight(self, dt):
         return dt / (self.time_constant_s + dt)
 
-    def law(self, command_rad_per_s, drive, dt, torque_0, slope):
-        if self.mean_torque_nm is None:
-            self.mean_torque_nm = drive.string_torque_nm
+    def law(self, command_rad_per_s, mean_torque_nm, dt, torque_0, slope):
+        """Return (s_0, s_1) of the set-point omega_sp = s_0 + s_1 omega_{n+1} (rad/s, -)."""
         # T - LP(T) after the step, with LP_{n+1} = LP_n + w (T_{n+1} - LP_n), T = T_0 + Z omega.
         keep = 1.0 - self._weight(dt)
-        offset = command_rad_per_s - keep * (torque_0 - self.mean_torque_nm) / self.impedance
+        offset = command_rad_per_s - keep * (torque_0 - mean_torque_nm) / self.impedance
         return offset, -keep * slope / self.impedance
 
-    def update(self, string_torque_nm, dt):
-        self.mean_torque_nm += self._weight(dt) * (string_torque_nm - self.mean_torque_nm)
+    def mean_after(self, mean_torque_nm, string_torque_nm, dt):
+        """Return the slow mean of T_s after a step that ended at ``string_torque_nm`` (N m)."""
+        return mean_torque_nm + self._weight(dt) * (string_torque_nm - mean_torque_nm)
 
 
 class SoftTorque(TorqueFeedback):

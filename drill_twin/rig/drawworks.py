@@ -15,7 +15,8 @@ restart, below), H_S the prestressed hook load. The
 simulator takes the hook load of the coming step as a force; u_top after the step is affine
 in it (the axial block is linear; the bit force, the only non-linear axial force here, is
 taken from the last converged step), so H is solved implicitly with the string's axial
-block, as the top drive's torque is (drill_twin/rig/top_drive.py).
+block, as the top drive's torque is (drill_twin/rig/top_drive.py). The drawworks reads the
+simulator's state and operators and returns the hook load; the rig hands it to the simulator.
 
 The autodriller regulates v_b = v_I + K_p e, v_I' = K_i e, e = WOB_sp - WOB (WOB > 0 in
 compression, measured at the last step), with v_b within [0, v_max]: an autodriller feeds
@@ -24,10 +25,10 @@ stop instead of following the string up), and never faster than its ROP limit v_
 (``autodriller_feed_rate_max_m_per_s``). The integral v_I is held within the same [0, v_max]
 (anti-windup by clamping): a WOB overshoot is then bounded by about v_max / K_p, the error at
 which the proportional action stops the block. Engaged, the integral starts from the block's
-velocity (bumpless) clamped to [0, v_max]: the integral of this slow loop (period about 130 s)
-started at the 0.2 m/s of a block still slowing from a run down fed a stopped bit to 900 kN at
-a 200 kN set-point (envelope sweep, 2026-12-02), and the string's wind-up then spun the bit
-at 150 rad/s when the top drive started. In both modes v_b moves towards its target by at most
+velocity (bumpless) clamped to [0, v_max]: unclamped, the integral of this slow loop (period
+about 130 s) started at the 0.2 m/s of a block still slowing from a run down would feed a
+stopped bit to 900 kN at a 200 kN set-point, and the string's wind-up would then spin the bit
+at 150 rad/s when the top drive starts. In both modes v_b moves towards its target by at most
 a_max dt a step (``block_acceleration_max_m_per_s2``): a velocity step would ring the string's
 axial modes (a 0.25 m/s stop swings the bit by 0.45 m/s), which no drum does.
 
@@ -35,22 +36,48 @@ After a member is restarted from a safe state, :meth:`Drawworks.reseat` pays out
 line (s, zero until then) so that it pulls that state's hook load; the block does not jump.
 
 Member 0 is the reference member (the hook load is shared by the batch).
+
+Beside the drawworks: :class:`HookBrake` (the drum's brake under the paper's hook force) and
+:class:`FollowedBlock` (every member of an ensemble hung from the rig's block by a line of its
+own). The axial input's modes are :class:`AxialMode`.
 """
 from __future__ import annotations
+
+import dataclasses
+import enum
 
 import numpy as np
 import scipy.linalg as la
 
 from drill_twin.config.schema import Drawworks as DrawworksConfig
+from drill_twin.integrator import newmark_scheme as newmark
 from drill_twin.integrator.member_measures import largest_top_speed
-from drill_twin.rig.top_drive import NEWMARK_BETA, NEWMARK_GAMMA
+
+
+class AxialMode(enum.Enum):
+    """What sets the hook load of the coming step."""
+
+    HOOK_LOAD = 'hook_load'
+    """The paper's: the hook load command as a force (held by the drum's brake if configured)."""
+    BLOCK_VELOCITY = 'block_velocity'
+    """The block moved at the commanded velocity; the hook load is the drill line's pull."""
+    AUTODRILLER = 'autodriller'
+    """The block moved by the autodriller towards a WOB set-point; the line's pull."""
+    FOLLOWED_BLOCK = 'followed_block'
+    """Every member's own line hung from another model's block (the twin's ensemble)."""
+
+
+DRAWWORKS_MODES = (AxialMode.BLOCK_VELOCITY, AxialMode.AUTODRILLER)
+"""The modes in which a :class:`Drawworks` moves the block."""
 
 
 class TopAxialMotion:
     """
     Return the top's axial displacement and velocity after the coming step.
 
-    As affine functions of the hook load of that step (member 0).
+    As affine functions of the hook load of that step (member 0, or every member), from the
+    simulator's state and the operators of its axial block (Newmark's predictor and corrector,
+    :mod:`~drill_twin.integrator.newmark_scheme`).
     """
 
     def __init__(self, simulator):
@@ -66,12 +93,11 @@ class TopAxialMotion:
         self.damping = system.damping[c, c]
         self.stiffness = system.stiffness[c, c]
         dt = self.dt
-        effective = (self.mass + NEWMARK_GAMMA * dt * self.damping
-                     + NEWMARK_BETA * dt * dt * self.stiffness)
-        self._factor = la.lu_factor(effective)
+        self._factor = la.lu_factor(newmark.effective_matrix(self.mass, self.damping,
+                                                             self.stiffness, dt))
         response = -la.lu_solve(self._factor, self.row)           # da/dH
-        self.displacement_slope_m_per_n = float(NEWMARK_BETA * dt * dt * self.row @ response)
-        self.velocity_slope_m_per_s_per_n = float(NEWMARK_GAMMA * dt * self.row @ response)
+        self.displacement_slope_m_per_n = float(newmark.BETA * dt * dt * self.row @ response)
+        self.velocity_slope_m_per_s_per_n = float(newmark.GAMMA * dt * self.row @ response)
 
     def now(self) -> tuple[float, float]:
         """(u_top, u_top') at the current state (m, m/s)."""
@@ -117,73 +143,81 @@ class TopAxialMotion:
         sim, dt, c = self.simulator, self.dt, self.columns
         state = sim.state
         q, v, a = state.q[rows, c], state.q_rate[rows, c], state.q_acceleration[rows, c]
-        d_pred = q + dt * v + (0.5 - NEWMARK_BETA) * dt * dt * a
-        v_pred = v + (1.0 - NEWMARK_GAMMA) * dt * a
+        d_pred = newmark.predicted_displacement(q, v, a, dt)
+        v_pred = newmark.predicted_velocity(v, a, dt)
         load = (sim.last.modal[rows, c] - v_pred @ self.damping.T - d_pred @ self.stiffness.T
                 - self.row * (hook_load_n - self.static_hook_load_n))
         a_new = la.lu_solve(self._factor, load.T).T
-        return ((d_pred + NEWMARK_BETA * dt * dt * a_new) @ self.row,
-                (v_pred + NEWMARK_GAMMA * dt * a_new) @ self.row)
+        return (newmark.corrected_displacement(d_pred, a_new, dt) @ self.row,
+                newmark.corrected_velocity(v_pred, a_new, dt) @ self.row)
+
+
+@dataclasses.dataclass(slots=True)
+class DrawworksState:
+    """
+    The drawworks' variables (m, m/s, N).
+
+    block_position_m: x_b (down > 0, from the prestressed state); block_velocity_m_per_s:
+    v_b; autodriller_integral_m_per_s: v_I; hook_load_n: what the line pulls over the last
+    step; line_slack_m: s, the line's length change since the drawworks took over.
+    """
+
+    block_position_m: float
+    block_velocity_m_per_s: float
+    autodriller_integral_m_per_s: float
+    hook_load_n: float
+    line_slack_m: float = 0.0
+
+    def copy(self) -> DrawworksState:
+        return DrawworksState(self.block_position_m, self.block_velocity_m_per_s,
+                              self.autodriller_integral_m_per_s, self.hook_load_n,
+                              self.line_slack_m)
 
 
 class Drawworks:
     """
     Block velocity input and autodriller (module docstring).
 
-    ``before_step`` sets the simulator's hook load for the coming step.
+    :param simulator: the string whose top the line holds (read, never written).
+    :param config: the drawworks.
+    :param hook_load_command_n: the hook load the string hangs from now (N): the block starts
+        where the line pulls it (no jump when the drawworks takes over), at the top's speed.
+
+    :meth:`before_step` moves the block over the coming step and returns the hook load.
     """
 
-    def __init__(self, simulator, config: DrawworksConfig):
+    def __init__(self, simulator, config: DrawworksConfig, hook_load_command_n: float):
         self.simulator = simulator
         self.config = config
-        self.mode = config.mode
         self.top = TopAxialMotion(simulator)
         self.line_stiffness = config.line_stiffness_n_per_m
         self.line_damping = config.line_damping_n_s_per_m
-        position, velocity = self.top.now()
-        self.line_slack_m = 0.0
-        """s (m): the line's length change since the drawworks took over (:meth:`reseat`)."""
-        position, _ = self.top.now()
-        self.block_position_m = position - (simulator.hook_load_command_n
-                                            - self.top.static_hook_load_n) / self.line_stiffness
-        """x_b, m (down > 0, from the prestressed state): where the line pulls the hook load
-        the simulator had (no jump when the drawworks takes over)."""
-        self.block_velocity_command_m_per_s = config.block_velocity_m_per_s
-        self.weight_on_bit_setpoint_n = config.weight_on_bit_setpoint_n
         self.kp = config.autodriller_proportional_m_per_s_per_n
         self.ki = config.autodriller_integral_m_per_s2_per_n
         self.feed_rate_max_m_per_s = config.autodriller_feed_rate_max_m_per_s
         self.acceleration_max_m_per_s2 = config.block_acceleration_max_m_per_s2
-        self.autodriller_integral_m_per_s = self._feed(velocity)   # bumpless: the top's speed
-        self.block_velocity_m_per_s = velocity            # the block ramps from the top's speed
-        self.hook_load_n = float(simulator.hook_load_command_n)
+        position, velocity = self.top.now()
+        self.state = DrawworksState(
+            block_position_m=position - (hook_load_command_n
+                                         - self.top.static_hook_load_n) / self.line_stiffness,
+            block_velocity_m_per_s=velocity,               # the block ramps from the top's speed
+            autodriller_integral_m_per_s=self._feed(velocity),   # bumpless: the top's speed
+            hook_load_n=float(hook_load_command_n))
 
-    def reseat(self) -> None:
+    def reseat(self, hook_load_command_n: float) -> None:
         """
-        Pay out or take in line so that it pulls the simulator's hook load command now.
+        Pay out or take in line so that it pulls ``hook_load_command_n`` (N) now.
 
         The block does not jump (an ensemble follows it): the line's slack s takes the change.
         """
         position, _ = self.top.now()
-        self.line_slack_m = (position - self.block_position_m
-                             - (self.simulator.hook_load_command_n
-                                - self.top.static_hook_load_n) / self.line_stiffness)
+        self.state.line_slack_m = (position - self.state.block_position_m
+                                   - (hook_load_command_n - self.top.static_hook_load_n)
+                                   / self.line_stiffness)
 
-    def set_mode(self, mode: str) -> None:
-        """'block_velocity' or 'autodriller' (switch at run time; bumpless)."""
-        if mode not in ('block_velocity', 'autodriller'):
-            raise ValueError(f'drawworks mode must be block_velocity or autodriller, not {mode!r}')
-        if mode == 'autodriller' and self.mode != 'autodriller':
-            self.autodriller_integral_m_per_s = self._feed(self.block_velocity_m_per_s)
-        self.mode = mode
-
-    def set_block_velocity(self, m_per_s: float) -> None:
-        """Return the block velocity command (m/s, down > 0), followed in block_velocity mode."""
-        self.block_velocity_command_m_per_s = float(m_per_s)
-
-    def set_weight_on_bit_setpoint(self, newton: float) -> None:
-        """Return the autodriller's WOB set-point (N, > 0 in compression)."""
-        self.weight_on_bit_setpoint_n = float(newton)
+    def engage_autodriller(self) -> None:
+        """Start the autodriller's integral from the block's velocity (bumpless, clamped)."""
+        self.state.autodriller_integral_m_per_s = self._feed(self.state.block_velocity_m_per_s)
 
     def _feed(self, m_per_s: float) -> float:
         """Return a feed rate within the autodriller's range [0, v_max] (m/s)."""
@@ -193,36 +227,41 @@ class Drawworks:
         """WOB of the last step, > 0 in compression (N)."""
         return float(-self.simulator.last.weight_on_bit_n[0])
 
-    def before_step(self) -> float:
-        """Block motion over the coming step and the hook load it implies (N)."""
-        dt = self.top.dt
-        if self.mode == 'autodriller':
-            error = self.weight_on_bit_setpoint_n - self.measured_weight_on_bit_n()
-            self.autodriller_integral_m_per_s = self._feed(
-                self.autodriller_integral_m_per_s + self.ki * dt * error)
+    def before_step(self, autodriller: bool, block_velocity_command_m_per_s: float,
+                    weight_on_bit_setpoint_n: float) -> float:
+        """
+        Move the block over the coming step; return the hook load it implies (N).
+
+        ``autodriller``: the autodriller sets the block's velocity towards the WOB set-point
+        (N, > 0 in compression); else the block follows the velocity command (m/s, down > 0).
+        """
+        state, dt = self.state, self.top.dt
+        if autodriller:
+            error = weight_on_bit_setpoint_n - self.measured_weight_on_bit_n()
+            state.autodriller_integral_m_per_s = self._feed(
+                state.autodriller_integral_m_per_s + self.ki * dt * error)
             # It feeds line (v_b >= 0, never hoists) up to its ROP limit, whatever the string does.
-            target = self._feed(self.autodriller_integral_m_per_s + self.kp * error)
+            target = self._feed(state.autodriller_integral_m_per_s + self.kp * error)
         else:
-            target = self.block_velocity_command_m_per_s
+            target = block_velocity_command_m_per_s
         reach = self.acceleration_max_m_per_s2 * dt
-        now = self.block_velocity_m_per_s
-        self.block_velocity_m_per_s = min(max(target, now - reach), now + reach)
-        self.block_position_m += dt * self.block_velocity_m_per_s
+        now = state.block_velocity_m_per_s
+        state.block_velocity_m_per_s = min(max(target, now - reach), now + reach)
+        state.block_position_m += dt * state.block_velocity_m_per_s
         u0, v0 = self.top.predicted(0.0)
-        self.hook_load_n = float(self.top.hook_load_through_line(
-            self.line_stiffness, self.line_damping, u0, v0, self.block_position_m,
-            self.block_velocity_m_per_s, self.line_slack_m))
-        self.simulator.set_hook_load(self.hook_load_n)
-        return self.hook_load_n
+        state.hook_load_n = float(self.top.hook_load_through_line(
+            self.line_stiffness, self.line_damping, u0, v0, state.block_position_m,
+            state.block_velocity_m_per_s, state.line_slack_m))
+        return state.hook_load_n
 
 
 def line_hook_load_n(drawworks: Drawworks) -> float:
     """Return the line's pull at the current state (N): the hook load as measured."""
     u, v = drawworks.top.now()
+    state = drawworks.state
     return max(drawworks.top.static_hook_load_n
-               + drawworks.line_stiffness * (u - drawworks.block_position_m
-                                             - drawworks.line_slack_m)
-               + drawworks.line_damping * (v - drawworks.block_velocity_m_per_s), 0.0)
+               + drawworks.line_stiffness * (u - state.block_position_m - state.line_slack_m)
+               + drawworks.line_damping * (v - state.block_velocity_m_per_s), 0.0)
 
 
 class HookBrake:
@@ -231,12 +270,15 @@ class HookBrake:
 
     In ``hook_load`` mode the hook load is a force, and nothing in the paper's model limits how
     fast it moves the string: a hook load 250 kN below the string's weight with the bit 7 m off
-    bottom dropped the string at 5.4 m/s onto the rock (envelope sweep, 2026-12-02), and at the
-    string's weight a string released from its WOB drifted up at 0.5 m/s. A rig's hook hangs
-    from a block that the drum moves at most at ``block_speed_max_m_per_s``: where the command
-    would take the top's axial speed beyond it in the coming step, the hook load is what holds
-    it there, H = H_cmd + (v_cap - v(H_cmd)) / (dv/dH) (u_top' affine in H, as in
+    bottom drops the string at 5.4 m/s onto the rock, and at the string's weight a string
+    released from its WOB drifts up at 0.5 m/s. A rig's hook hangs from a block that the drum
+    moves at most at ``block_speed_max_m_per_s``: where the command would take the top's axial
+    speed beyond it in the coming step, the hook load is what holds it there,
+    H = H_cmd + (v_cap - v(H_cmd)) / (dv/dH) (u_top' affine in H, as in
     :class:`TopAxialMotion`), never below 0. Below the cap the command is applied unchanged.
+
+    It keeps the last command it saw only to skip the prediction while the command holds and
+    the top is far below the cap (a cache: the hook load is the same without it).
     """
 
     def __init__(self, simulator, speed_max_m_per_s: float):
@@ -272,6 +314,18 @@ class HookBrake:
         return held
 
 
+@dataclasses.dataclass(slots=True)
+class FollowedBlockState:
+    """The followed block's position x_b (m) and every member's line slack s_m, (m,) (m)."""
+
+    block_position_m: float = 0.0
+    slack_m: np.ndarray | None = None
+    """None until the block is first followed; replaced, never written in place."""
+
+    def copy(self) -> FollowedBlockState:
+        return FollowedBlockState(self.block_position_m, self.slack_m)
+
+
 class FollowedBlock:
     """
     Every member's drill line hung from one block that moves as the rig's (the ensemble's input).
@@ -284,46 +338,54 @@ class FollowedBlock:
     solved with each member's axial block as :class:`Drawworks` does for member 0. s_m, the
     slack of member m's line, is set when the block is first followed (each line then pulls the
     hook load its member had: no jump) and again for members restarted from a safe state
-    (:meth:`reseat`). Without it the members took the mean model's hook load as a force: a
-    member whose hole was deeper than the mean model's fell further when the mean model set down.
+    (:meth:`reseat`). Without it the members would take the mean model's hook load as a force,
+    and a member whose hole is deeper than the mean model's would fall further when the mean
+    model sets down.
     """
 
     def __init__(self, simulator, config: DrawworksConfig):
         self.simulator = simulator
+        self.members = simulator.members
         self.top = TopAxialMotion(simulator)
         self.line_stiffness = config.line_stiffness_n_per_m
         self.line_damping = config.line_damping_n_s_per_m
-        self.slack_m = None
-        """s_m (m,), None until the block is first followed."""
-        self.block_position_m = 0.0
+        self.state = FollowedBlockState()
 
-    def follow(self, block_position_m: float, block_velocity_m_per_s: float) -> np.ndarray:
-        """Set every member's hook load for the coming step; the block ends it at x_b (N, (m,))."""
-        self.simulator.hook_load_through_line = True          # the lines, not the brake
-        if self.slack_m is None:
-            self.block_position_m = block_position_m
-            self.reseat(np.arange(self.simulator.members))
-        self.block_position_m = block_position_m
+    @property
+    def following(self) -> bool:
+        """Whether the lines hang from the block (since the first :meth:`follow`)."""
+        return self.state.slack_m is not None
+
+    def follow(self, block_position_m: float, block_velocity_m_per_s: float,
+               hook_load_command_n) -> np.ndarray:
+        """
+        Return every member's hook load for the coming step; the block ends it at x_b (N, (m,)).
+
+        ``hook_load_command_n``: the hook loads the members hang from now (N, scalar or (m,)):
+        the first call seats every line to pull its member's.
+        """
+        state = self.state
+        if state.slack_m is None:
+            state.block_position_m = block_position_m
+            self.reseat(np.arange(self.members), hook_load_command_n)
+        state.block_position_m = block_position_m
         u0, v0 = self.top.predicted_members()
-        loads = self.top.hook_load_through_line(self.line_stiffness, self.line_damping, u0, v0,
-                                                block_position_m, block_velocity_m_per_s,
-                                                self.slack_m)
-        self.simulator.set_hook_load(loads)
-        return loads
+        return self.top.hook_load_through_line(self.line_stiffness, self.line_damping, u0, v0,
+                                               block_position_m, block_velocity_m_per_s,
+                                               state.slack_m)
 
-    def reseat(self, members) -> None:
-        """Set the slack of ``members`` so that their lines pull their hook loads now."""
+    def reseat(self, members, hook_load_command_n) -> None:
+        """Set the slack of ``members`` so that their lines pull ``hook_load_command_n`` now."""
         members = np.asarray(members, dtype=int)
-        hook = np.broadcast_to(np.asarray(self.simulator.hook_load_command_n, dtype=float),
-                               (self.simulator.members,))
+        hook = np.broadcast_to(np.asarray(hook_load_command_n, dtype=float), (self.members,))
         position, _ = self.top.now_members()
-        slack = (position - self.block_position_m
+        slack = (position - self.state.block_position_m
                  - (hook - self.top.static_hook_load_n) / self.line_stiffness)
-        if self.slack_m is None:
-            self.slack_m = np.zeros(self.simulator.members)
-        self.slack_m[members] = slack[members]
+        kept = (np.zeros(self.members) if self.state.slack_m is None
+                else self.state.slack_m.copy())
+        kept[members] = slack[members]
+        self.state.slack_m = kept
 
     def release(self) -> None:
         """Stop following (back to one hook load for the batch): the next follow reseats all."""
-        self.slack_m = None
-        self.simulator.hook_load_through_line = False
+        self.state.slack_m = None

@@ -11,9 +11,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from drill_twin.rig.drawworks import line_hook_load_n
-from drill_twin.rig.drives import drawworks_of
-
 
 @dataclass(frozen=True)
 class SurfaceReadings:
@@ -34,19 +31,19 @@ class SurfaceReadings:
     weight_on_bit_n: float
 
 
-def surface_readings(simulator, observation, string_weight_n: float) -> SurfaceReadings:
-    """Return the readings of member 0 of ``simulator`` at ``observation`` (its latest)."""
-    drawworks = drawworks_of(simulator)
-    if drawworks is None:
-        hook = float(observation.hook_load_n)
-        block = float(observation.hook_position_m[0])
-    else:
-        hook = line_hook_load_n(drawworks)
-        block = float(drawworks.block_position_m)
+def surface_readings(rig, observation, string_weight_n: float) -> SurfaceReadings:
+    """
+    Return the readings of member 0 at ``observation`` (the latest of ``rig``'s simulator).
+
+    ``rig``: the :class:`~drill_twin.rig.rig.Rig` that drives it; ``string_weight_n``: the
+    off-bottom hook load (N).
+    """
+    hook = rig.measured_hook_load_n(observation)
     return SurfaceReadings(
         speed_rad_per_s=float(observation.top_speed_rad_per_s),
         torque_nm=float(observation.top_torque_nm[0]), hook_load_n=hook,
-        block_position_m=block, bit_depth_m=float(observation.depth_m[0]),
+        block_position_m=rig.block_position_m(observation),
+        bit_depth_m=float(observation.depth_m[0]),
         hole_depth_m=float(observation.hole_depth_m[0]),
         rop_m_per_s=float(observation.rop_m_per_s[0]),
         weight_on_bit_n=float(string_weight_n) - hook)

@@ -10,6 +10,7 @@ from threadpoolctl import threadpool_limits
 from drill_twin.config.schema import DrillStringConfig
 from drill_twin.model.reduced_system import ReducedSystem
 from drill_twin.integrator.simulator import Simulator
+from drill_twin.rig.rig import Rig
 from drill_twin.simulation.history import History, SimulationResult
 
 Progress = Callable[[float, float], None]
@@ -23,6 +24,9 @@ def run_simulation(config: DrillStringConfig, duration_s: float, *, members: int
     """
     Simulate ``duration_s`` seconds and return the recorded history.
 
+    The string is driven by the configured rig (:class:`~drill_twin.rig.rig.Rig`) under its
+    initial commands.
+
     BLAS is kept to one thread: the matrices of the time loop are small and threads cost
     more in synchronisation than they save (measured on this 2-core machine: a 64 x 166
     by 166 x 166 product took 1.3 ms with two busy threads, 0.11 ms with one).
@@ -32,6 +36,7 @@ def run_simulation(config: DrillStringConfig, duration_s: float, *, members: int
     """
     with threadpool_limits(limits=1, user_api='blas'):
         simulator = Simulator(config, members=members, germs=germs, system=system)
+        rig = Rig(simulator)
         dt = simulator.dt
         interval = record_interval_s or config.output.record_interval_s
         every = max(1, int(round(interval / dt)))
@@ -42,7 +47,7 @@ def run_simulation(config: DrillStringConfig, duration_s: float, *, members: int
         start = time.perf_counter()
         last_report = start
         for k in range(1, steps + 1):
-            simulator.step()
+            rig.step()
             if k % every == 0:
                 history.record_simulator(simulator)
             if progress is not None and time.perf_counter() - last_report > 0.5:

@@ -37,6 +37,7 @@ from drill_twin.model.bit_rock import BitRockLaw
 from drill_twin.analysis.linear_stability import AxialTorsionalLinearisation, stability_grid
 from drill_twin.model.reduced_system import build_reduced_system
 from drill_twin.integrator.simulator import SimulationDiverged, Simulator
+from drill_twin.rig.rig import Rig
 from drill_twin.analysis.steady_drilling import hook_load_for, steady_coordinates, under_hook_load
 from drill_twin.modal.reduced_basis import modal_analysis
 
@@ -233,6 +234,7 @@ def _perturbation(system, spec: MapSpec, index: int) -> np.ndarray:
 def _integrate(config, system, spec: MapSpec, steady, hook: float,
                index: int) -> dict:
     simulator = Simulator(config, system=system)
+    rig = Rig(simulator)
     if spec.start == 'steady':
         q, q_rate = steady_coordinates(system, steady, hook, simulator.state.q,
                                        simulator.state.q_rate)
@@ -246,7 +248,7 @@ def _integrate(config, system, spec: MapSpec, steady, hook: float,
     impacts = lift_offs = None
     for k in range(steps + 1):
         if k > 0:
-            simulator.step()
+            rig.step()
         if k < first:
             continue
         if impacts is None:

@@ -42,11 +42,11 @@ from drill_twin.assimilation.sequential import AnalysisRecord, Sample, Sequentia
 from drill_twin.assimilation.settings import AssimilationConfig
 from drill_twin.assimilation.state import law_scales_for_members
 from drill_twin.config.schema import DrillStringConfig
-from drill_twin.rig import drives as rig
-from drill_twin.rig.drawworks import FollowedBlock
 from drill_twin.integrator.simulator import Simulator
-from drill_twin.rig.top_drive import FollowedTopSpeed
 from drill_twin.integrator.stepping import GuardedSimulator, TwinEvent
+from drill_twin.rig.drawworks import AxialMode
+from drill_twin.rig.rig import Rig
+from drill_twin.rig.top_drive import TopDriveMode
 from drill_twin.uncertainty.executors import SINGLE_THREADED_BLAS
 from drill_twin.uncertainty.germ import germs_for_realizations, validate_dispersion
 
@@ -165,13 +165,11 @@ class LocalEnsemble:
                   if spec is not None and spec.parameters == 'law' else None)
         simulator = Simulator(config, members=settings.members, germs=germs, system=system,
                               law_scales=scales)
-        self.guarded = GuardedSimulator(simulator, first_member=1, name='ensemble members')
-        if rig.drawworks_of(simulator) is not None:    # the lines follow the rig's block
-            rig.set_axial_mode(simulator, 'hook_load')
-        self.block = FollowedBlock(simulator, config.drawworks)
-        self.top = FollowedTopSpeed(simulator.top_drive.speed_rad_per_s)
-        simulator.top_drive = self.top                  # the members turn with the rig's top
-        simulator.reset_listeners.append(self._reseat)
+        # The members turn with the rig's top and hang from its block (or its hook load).
+        self.rig = Rig(simulator)
+        self.rig.set_top_drive_mode(TopDriveMode.FOLLOWED)
+        self.rig.set_axial_mode(AxialMode.HOOK_LOAD)
+        self.guarded = GuardedSimulator(self.rig, first_member=1, name='ensemble members')
         self.filter = None
         if settings.assimilation is not None:
             rng = np.random.default_rng(np.random.SeedSequence(settings.seed, spawn_key=(1,)))
@@ -210,10 +208,6 @@ class LocalEnsemble:
             self.simulator.copy_members(list(replaced), list(replaced.values()), germs=germs)
         return replaced
 
-    def _reseat(self, members) -> None:
-        if self.block.slack_m is not None:
-            self.block.reseat(members)
-
     def collect(self) -> EnsembleResult:
         """Do the pending tick's work, if any, and return the ensemble's latest result."""
         if self._request is None:
@@ -225,14 +219,14 @@ class LocalEnsemble:
             for sample in samples:
                 self.filter.offer(sample)                # a refusal is kept in its refusals
         if block is None:
-            self.block.release()
-            self.simulator.set_hook_load(hook)
+            self.rig.set_axial_mode(AxialMode.HOOK_LOAD)
+            self.rig.set_hook_load(hook)
         iterations = 0
         for step in range(steps):
-            self.top.follow(speeds[step])
+            self.rig.follow_top_speed(speeds[step])
             if block is not None:
                 positions, velocities = block
-                self.block.follow(positions[step], velocities[step])
+                self.rig.follow_block(positions[step], velocities[step])
             result = self.guarded.step()
             if result is not None:
                 self.step_index += 1

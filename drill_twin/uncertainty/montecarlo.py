@@ -31,6 +31,7 @@ from drill_twin.config.loader import build_config
 from drill_twin.model.reduced_system import build_reduced_system
 from drill_twin.integrator.simulator import SimulationDiverged, Simulator
 from drill_twin.modal.reduced_basis import modal_analysis
+from drill_twin.rig.rig import Rig
 from drill_twin.uncertainty.germ import germs_for_realizations, validate_dispersion
 
 QUANTITIES = ('rop_m_per_s', 'bit_speed_rad_per_s', 'weight_on_bit_n', 'torque_on_bit_nm',
@@ -189,6 +190,7 @@ def _integrate(config, system, spec: StudySpec, indices, germs, leading: int) ->
     """
     members = germs.shape[0]
     simulator = Simulator(config, members=members, germs=germs, system=system)
+    rig = Rig(simulator)
     station = _station_index(system, spec.station_m)
     rows = system.stations[station].rows
     dt, every, steps, first = _window_steps(config, spec)
@@ -202,7 +204,7 @@ def _integrate(config, system, spec: StudySpec, indices, germs, leading: int) ->
     start = time.perf_counter()
     for k in range(steps + 1):
         if k > 0:
-            simulator.step()
+            rig.step()
         if k % every:
             continue
         u = system.physical(simulator.state.q)

@@ -13,6 +13,7 @@ from test_excitation import _config
 
 from drill_twin.analysis.power_balance import TERMS, LateralEnergyBalance
 from drill_twin.integrator.simulator import Simulator
+from drill_twin.rig.rig import Rig
 
 
 def test_lateral_energy_balance_closes_with_every_term_on():
@@ -36,10 +37,11 @@ def test_lateral_energy_balance_closes_with_every_term_on():
                      lateral_readings=replace(config.lateral_readings,
                                               stiffness_damping='rotating_frame'))
     simulator = Simulator(config)
+    rig = Rig(simulator)
     balance = LateralEnergyBalance(simulator)
     touched = False
     for _ in range(1000):
-        simulator.step()
+        rig.step()
         balance.update()
         touched |= bool(simulator.last.contact.in_contact.any())
     work = {term: float(balance.work_j[term][0]) for term in TERMS}

@@ -26,6 +26,7 @@ from drill_twin.integrator.simulator import Simulator
 from drill_twin.modal.reduced_basis import modal_analysis
 from drill_twin.twin.ensemble import EnsembleSettings, LocalEnsemble
 from drill_twin.integrator.stepping import MAX_CONSECUTIVE_FAILURES, GuardedSimulator, TwinStalled
+from drill_twin.rig.rig import Rig
 from drill_twin.uncertainty.germ import germs_for_realizations
 
 SMALL = ['sections.drill_pipe.elements=8', 'sections.drill_collar.elements=4',
@@ -45,14 +46,15 @@ def _batch(config, members=4):
 
 def test_a_copied_member_is_the_other_member_from_then_on(config):
     simulator = _batch(config)
+    rig = Rig(simulator)
     for _ in range(40):
-        simulator.step()
+        rig.step()
     simulator.copy_members([3], [1])
     np.testing.assert_array_equal(simulator.integrator.germ[3], simulator.integrator.germ[1])
     np.testing.assert_array_equal(simulator.integrator.law_scales[3],
                                   simulator.integrator.law_scales[1])
     for _ in range(200):
-        simulator.step()
+        rig.step()
     seen = simulator.observe()
     for name in ('speed_rad_per_s', 'weight_on_bit_n', 'torque_on_bit_nm'):
         values = getattr(seen, name)
@@ -93,8 +95,8 @@ def test_a_member_stalled_on_a_bound_is_handed_over_and_reported(config):
         guard.members.clear()                      # the copy is plausible
         return {2: 0}
 
-    guarded = GuardedSimulator(simulator, first_member=1, name='ensemble members', guard=guard,
-                               on_stalled=replace)
+    guarded = GuardedSimulator(Rig(simulator), first_member=1, name='ensemble members',
+                               guard=guard, on_stalled=replace)
     _run(guarded, MAX_CONSECUTIVE_FAILURES + 10)
     assert handed == [[2]]                          # once, after the limit, that member only
     events = [e for e in guarded.events if e.kind == 'member_replaced']
@@ -105,11 +107,11 @@ def test_a_member_stalled_on_a_bound_is_handed_over_and_reported(config):
 
 
 def test_without_a_replacement_a_stalled_member_still_stalls_the_batch(config):
-    guarded = GuardedSimulator(_batch(config, members=2), first_member=1,
+    guarded = GuardedSimulator(Rig(_batch(config, members=2)), first_member=1,
                                name='ensemble members', guard=_Breached([1]))
     with pytest.raises(TwinStalled, match=r'ensemble members \[2\] broke a physical bound'):
         _run(guarded, MAX_CONSECUTIVE_FAILURES + 1)
-    refusing = GuardedSimulator(_batch(config, members=2), first_member=1,
+    refusing = GuardedSimulator(Rig(_batch(config, members=2)), first_member=1,
                                 name='ensemble members', guard=_Breached([0, 1]),
                                 on_stalled=lambda stalled: {})
     with pytest.raises(TwinStalled):
@@ -119,7 +121,7 @@ def test_without_a_replacement_a_stalled_member_still_stalls_the_batch(config):
 def test_one_plausible_step_ends_a_run_of_breaches(config):
     """A member stalls after MAX_CONSECUTIVE_FAILURES breaches in a row, not in all."""
     guard = _Breached([])
-    guarded = GuardedSimulator(_batch(config, members=2), first_member=1,
+    guarded = GuardedSimulator(Rig(_batch(config, members=2)), first_member=1,
                                name='ensemble members', guard=guard)
     for _ in range(3):                                # runs one short of the limit
         guard.members = {1}
@@ -137,9 +139,10 @@ def test_the_filter_draws_donors_from_the_pool_and_carries_their_predictions(con
     settings = load_assimilation(None, ['assimilation.filter.members=3',
                                         'assimilation.filter.parameters=law'])
     simulator = _batch(config, members=6)              # 3 analysed, 3 open loop
+    rig = Rig(simulator)
     sequential = SequentialFilter(simulator, 3, settings, np.random.default_rng(0))
     for _ in range(10):
-        simulator.step()
+        rig.step()
         sequential.after_step()
     replaced = sequential.replace_stalled([1, 4, 5], [range(3), range(3, 6)])
     assert replaced[1] in (0, 2) and replaced[4] == 3 and replaced[5] == 3
@@ -161,8 +164,9 @@ def test_a_copy_under_a_new_germ_follows_its_own_law(config):
     drills by that law from the next step on, not the donor's.
     """
     simulator = _batch(config)
+    rig = Rig(simulator)
     for _ in range(40):
-        simulator.step()
+        rig.step()
     simulator.copy_members([3], [1], germs=simulator.integrator.germ[1][None].copy())
     new_germ = germs_for_realizations(0.2, 0, [17])
     simulator.copy_members([2], [1], germs=new_germ)
@@ -173,7 +177,7 @@ def test_a_copy_under_a_new_germ_follows_its_own_law(config):
         np.testing.assert_array_equal(getattr(simulator.state, name)[2],
                                       getattr(simulator.state, name)[1])
     for _ in range(100):
-        simulator.step()
+        rig.step()
     seen = simulator.observe()
     assert seen.weight_on_bit_n[3] == pytest.approx(seen.weight_on_bit_n[1], rel=1e-6)
     assert seen.torque_on_bit_nm[2] != pytest.approx(seen.torque_on_bit_nm[1], rel=1e-3)
@@ -194,7 +198,7 @@ def test_the_open_loop_ensemble_redraws_a_stalled_member_and_goes_on(config):
     ensemble = LocalEnsemble(config, settings, build_reduced_system(model, basis))
     guard = _Breached([1])
     ensemble.guarded.guard = guard
-    speed = ensemble.simulator.top_drive.speed_rad_per_s
+    speed = ensemble.rig.top_drive.speed_rad_per_s
     events = []
     for _ in range(MAX_CONSECUTIVE_FAILURES // 2 + 5):
         ensemble.start(2, np.full(2, speed), ensemble.simulator.state.hook_load_n)

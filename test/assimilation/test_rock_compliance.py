@@ -16,6 +16,7 @@ from threadpoolctl import threadpool_limits
 
 from drill_twin.config import load_config
 from drill_twin.integrator.simulator import Simulator
+from drill_twin.rig.rig import Rig
 
 CHEAP = ['initial_conditions.steady_twist=true', 'initial_conditions.lateral_deflection_m=0',
          'reduced_basis.lateral_modes=2', 'physics.contact=false',
@@ -41,15 +42,16 @@ def _landing_peak(stiffness: str, dt: float, landing_speeds: list | None = None)
                                         f'bit_rock.contact_stiffness_n_per_m={stiffness}'])
     with threadpool_limits(limits=1, user_api='blas'):
         simulator = Simulator(config)
-        weight = simulator.hook_load_command_n - config.bit_rock.static_weight_on_bit_n
-        simulator.set_top_drive_speed(5.2)
-        simulator.set_hook_load(weight - 250e3)
+        rig = Rig(simulator)
+        weight = rig.hook_load_command_n - config.bit_rock.static_weight_on_bit_n
+        rig.set_top_drive_speed(5.2)
+        rig.set_hook_load(weight - 250e3)
         for _ in range(int(round(10.0 / dt))):
-            simulator.step()
-        simulator.set_hook_load(weight - 50e3)
+            rig.step()
+        rig.set_hook_load(weight - 50e3)
         largest, before = 0.0, simulator.observe(detailed=0)
         for _ in range(int(round(4.0 / dt))):
-            simulator.step()
+            rig.step()
             largest = max(largest, -float(simulator.last.weight_on_bit_n[0]))
             now = simulator.observe(detailed=0)
             if landing_speeds is not None and now.on_bottom[0] and not before.on_bottom[0]:
@@ -127,14 +129,15 @@ def test_the_rock_never_drives_the_bit(stiffness):
                                         f'bit_rock.contact_stiffness_n_per_m={stiffness}'])
     with threadpool_limits(limits=1, user_api='blas'):
         simulator = Simulator(config)
-        weight = simulator.hook_load_command_n - config.bit_rock.static_weight_on_bit_n
+        rig = Rig(simulator)
+        weight = rig.hook_load_command_n - config.bit_rock.static_weight_on_bit_n
         power, pressing = [], 0
         for seconds, hook in ((1.0, None), (0.04, weight), (2.0, weight - 3e5),
                               (1.0, weight + 5e4), (3.0, weight - 2.5e5)):
             if hook is not None:
-                simulator.set_hook_load(hook)
+                rig.set_hook_load(hook)
             for _ in range(int(round(seconds / simulator.dt))):
-                simulator.step()
+                rig.step()
                 last = simulator.last
                 power.append(float(last.torque_on_bit_nm[0] * last.bit_speed_rad_per_s[0]))
                 pressing += int(last.weight_on_bit_n[0] < 0 and last.rop_m_per_s[0] < 0)

@@ -18,6 +18,7 @@ from drill_twin.model.contact import contact_force
 from drill_twin.integrator.contact_events import (ContactEpisodes, LiftOffEpisodes,
                                                   event_rate_per_s, radial_gap_m)
 from drill_twin.integrator.simulator import Simulator
+from drill_twin.rig.rig import Rig
 from drill_twin.analysis.harmonic import forced_whirl
 from drill_twin.simulation.summary import summarize
 
@@ -166,11 +167,12 @@ def test_the_simulator_counts_a_bit_lift_off_once_and_the_summary_gives_rates():
     """
     config = _config(2.0, bit_rock=True)
     simulator = Simulator(config)
+    rig = Rig(simulator)
     assert simulator.lift_off_count.tolist() == [0]
-    simulator.set_hook_load(simulator.hook_load_command_n + 5e5)
+    rig.set_hook_load(rig.hook_load_command_n + 5e5)
     lifted = []
     for _ in range(200):
-        simulator.step()
+        rig.step()
         lifted.append(bool(simulator.last.lifted[0]))
     assert lifted[-1] and simulator.lift_off_count.tolist() == [1]
     assert simulator.lift_off_episodes.lifted[0]

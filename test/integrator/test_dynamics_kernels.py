@@ -310,10 +310,10 @@ def test_observe_derives_the_bit_quantities_by_their_definitions(default_config)
     from drill_twin.integrator.simulator import Simulator
     simulator = Simulator(default_config, members=2,
                           germs=np.eye(2) + np.zeros((2, 2, 2)))
-    simulator.set_hook_load(np.array([simulator.hook_load_command_n + 400e3,
-                                      simulator.hook_load_command_n]))
+    hook = simulator.state.hook_load_n
+    loads = np.array([hook + 400e3, hook])
     for _ in range(100):
-        simulator.step()
+        simulator.step(hook_load_n=loads)
     seen = simulator.observe()
     state, integrator = simulator.state, simulator.integrator
     length = simulator.system.model.mesh.total_length_m
@@ -384,7 +384,7 @@ def test_a_member_diverging_on_the_wall_fails_its_step_and_spares_the_others(def
     batch.state.q[1, bending.columns.start] = np.inf      # diverged since the last step
     integrator = batch.integrator
     state, result = integrator.step(batch.state, batch.state.top_speed_rad_per_s,
-                                    batch.hook_load_command_n)
+                                    batch.state.hook_load_n)
     assert not result.success and 'non-finite' in result.message
     assert result.finite.tolist() == [True, False]
     alone.step()
@@ -486,7 +486,7 @@ def test_a_failed_members_flags_are_put_back_without_touching_the_steps_result(d
     batch.state.q[1, bending.columns] *= 40.0      # member 1 goes to the wall ...
     batch.state.q[1, 0] = np.nan                   # ... and diverges there
     state, result = integrator.step(batch.state, batch.state.top_speed_rad_per_s,
-                                    batch.hook_load_command_n)
+                                    batch.state.hook_load_n)
     assert result.finite.tolist() == [True, False]
     computed = result.forces.contact.in_contact, result.forces.lifted
     contact, lifted = integrator._active

@@ -24,6 +24,7 @@ from drill_twin.integrator.newmark import StepResult
 from drill_twin.model.reduced_system import build_reduced_system
 from drill_twin.integrator.simulator import SUBSTEP_LEVELS, SimulationDiverged, Simulator
 from drill_twin.modal.reduced_basis import modal_analysis
+from drill_twin.rig.rig import Rig
 from drill_twin.uncertainty.germ import sample_germ
 
 settings.register_profile('envelope', derandomize=True, deadline=None, max_examples=12,
@@ -178,7 +179,7 @@ def test_only_a_member_that_fails_on_dt_over_16_raises(system):
     simulator.step()
     simulator.integrator.step = _failing(simulator.integrator.step, 0)
     for level in range(1, SUBSTEP_LEVELS + 1):                     # every sub-step fails too
-        integrator = simulator._substep_integrator(level, 0)
+        integrator = simulator.repair._substep_integrator(level, 0)
         integrator.step = _failing(integrator.step, 0)
     before = simulator.state.q.copy()
     with pytest.raises(SimulationDiverged) as info:
@@ -217,6 +218,7 @@ class EnvelopeRun:
 
     def __init__(self, simulator: Simulator):
         self.sim = simulator
+        self.rig = Rig(simulator)
         system = simulator.system
         self.clearance = system.clearance_m
         self.hole = simulator.observe(detailed=0).hole_depth_m.copy()
@@ -226,11 +228,11 @@ class EnvelopeRun:
 
     def hold(self, seconds, speed=None, hook=None):
         if speed is not None:
-            self.sim.set_top_drive_speed(speed)
+            self.rig.set_top_drive_speed(speed)
         if hook is not None:
-            self.sim.set_hook_load(hook)
+            self.rig.set_hook_load(hook)
         for _ in range(int(round(seconds / self.sim.dt))):
-            self.sim.step()                                       # raises if it diverges
+            self.rig.step()                                       # raises if it diverges
             self.check()
 
     def check(self):
@@ -269,7 +271,7 @@ def test_scripted_sweep_of_the_envelope(system, dt):
                                 f'integration.time_step_s={dt}'])
     simulator = Simulator(config, members=4, germs=_germs(0.3, 4, 11), system=reduced)
     run = EnvelopeRun(simulator)
-    drilling = simulator.hook_load_command_n
+    drilling = run.rig.hook_load_command_n
     run.hold(1.0)
     run.hold(2.0, speed=30.0, hook=_wob_hook(simulator, 3e5))
     run.hold(2.0, speed=15.0, hook=_wob_hook(simulator, 2.5e5))

@@ -19,6 +19,7 @@ from drill_twin.analysis import kpi
 from drill_twin.integrator.member_measures import measure_members
 from drill_twin.integrator.newmark import BatchState
 from drill_twin.integrator.simulator import Simulator
+from drill_twin.rig.rig import Rig
 from drill_twin.twin.engine import CommandRejected, EnsembleSettings, TwinEngine
 from drill_twin.integrator.envelope import (ENVELOPE_WEIGHT_ON_BIT_MAX_N,
                                             PLAUSIBLE_BLOCK_SPEED_M_PER_S, StringEnvelope)
@@ -146,7 +147,7 @@ def test_the_highest_hook_load_lifts_the_string_no_faster_than_a_block(config):
 
 def test_a_hook_load_past_the_door_trips_the_guard_and_nothing_implausible_comes_out(config):
     """
-    3 MN sent straight to the simulator (as if the door were open).
+    3 MN sent straight to the mean model's rig (as if the door were open).
 
     The mean model's steps break the speed bounds; each breach is an ERROR event, the mean model
     goes back to its last good state and restarts there; every snapshot stays in the hole at
@@ -156,7 +157,7 @@ def test_a_hook_load_past_the_door_trips_the_guard_and_nothing_implausible_comes
     """
     engine = _engine(load_config(None, TWIN_STEP + ['drawworks.block_speed_max_m_per_s=null']))
     guard = engine._mean.guard
-    engine.simulator.set_hook_load(3.0e6)
+    engine.rig.set_hook_load(3.0e6)
     snapshots = _advance(engine, 100)
     breaches = [e for s in snapshots for e in s.events if e.kind == 'implausible']
     assert breaches and all(e.level == 'error' for e in breaches)
@@ -231,7 +232,7 @@ def test_every_bound_of_the_guard_trips(config):
     kinetic energy.
     """
     simulator = Simulator(config)
-    simulator.step()
+    Rig(simulator).step()
     guard = StateGuard(simulator.system, simulator.law)
     assert guard.check(simulator) == {}
     system = simulator.system
@@ -311,7 +312,7 @@ def test_the_compiled_screen_decides_as_the_full_check(config):
     full check (measure everything, then word the reasons) is run with the screen switched off.
     """
     simulator = Simulator(config)
-    simulator.step()
+    Rig(simulator).step()
     guard = StateGuard(simulator.system, simulator.law)
     system, one, last = simulator.system, simulator.state, simulator.last
     members = 40
@@ -378,7 +379,7 @@ def test_the_screens_speed_bound_follows_the_top_speed(config):
     """
     from drill_twin.integrator.envelope import ENVELOPE_TOP_DRIVE_SPEED_MAX_RAD_PER_S as top_max
     simulator = Simulator(config)
-    simulator.step()
+    Rig(simulator).step()
     guard = StateGuard(simulator.system, simulator.law)
     last = simulator.last
     forces = SimpleNamespace(rop_m_per_s=last.rop_m_per_s.copy(),
@@ -478,16 +479,17 @@ def test_the_torque_the_law_pairs_with_an_accepted_landing_is_accepted():
                                 'bit_rock.contact_stiffness_n_per_m=null'])   # rigid rock
     with threadpool_limits(limits=1, user_api='blas'):
         simulator = Simulator(config)
+        rig = Rig(simulator)
         guard = StateGuard(simulator.system, simulator.law)
-        weight = simulator.hook_load_command_n - config.bit_rock.static_weight_on_bit_n
-        simulator.set_top_drive_speed(5.2)
-        simulator.set_hook_load(weight - 250e3)
+        weight = rig.hook_load_command_n - config.bit_rock.static_weight_on_bit_n
+        rig.set_top_drive_speed(5.2)
+        rig.set_hook_load(weight - 250e3)
         for _ in range(2000):
-            simulator.step()
-        simulator.set_hook_load(weight - 50e3)
+            rig.step()
+        rig.set_hook_load(weight - 50e3)
         wob, tob = [], []
         for _ in range(1000):
-            simulator.step()
+            rig.step()
             wob.append(-float(simulator.last.weight_on_bit_n[0]))
             tob.append(float(simulator.last.torque_on_bit_nm[0]))
     wob, tob = np.array(wob), np.abs(tob)

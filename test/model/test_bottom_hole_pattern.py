@@ -13,6 +13,7 @@ from conftest import config_with, default_raw
 
 from drill_twin.config import ConfigError
 from drill_twin.integrator.simulator import Simulator
+from drill_twin.rig.rig import Rig
 
 PIPE, COLLAR = 8, 4                      # a coarse mesh: fast, and the closed form is exact in
 LOBES = 3                                # the reduced basis whatever the mesh
@@ -162,12 +163,13 @@ def test_the_step_reports_the_bit_on_bottom_as_the_state_does_on_a_flat_bottom()
     """A bit picked up off a flat bottom and set down again: the flag follows, it lands."""
     config = _config(5e-3, excitation={'bottom_hole_pattern': {'enabled': False}})
     simulator = Simulator(config)
-    hook = simulator.hook_load_command_n
+    rig = Rig(simulator)
+    hook = rig.hook_load_command_n
     flags = []
     for load_change_n, seconds in ((0.0, 0.5), (150e3, 2.0), (-100e3, 4.0)):
-        simulator.set_hook_load(hook + load_change_n)
+        rig.set_hook_load(hook + load_change_n)
         for _ in range(int(round(seconds / simulator.dt))):
-            result = simulator.step()
+            result = rig.step()
             assert result.on_bottom[0] == simulator.on_bottom()[0]
             flags.append(result.on_bottom[0])
     flags = np.array(flags)

@@ -118,7 +118,7 @@ def test_member_by_member_refinement_is_the_batchs(monkeypatch):
     scale = (60.0, 45.0)
     batch = _thrown(4, members=2, scale=scale)
     fallback = _thrown(4, members=2, scale=scale)
-    monkeypatch.setattr(fallback, '_fine_steps', lambda *arguments: None)
+    monkeypatch.setattr(fallback.repair, '_fine_steps', lambda *arguments: None)
     with threadpool_limits(limits=1, user_api='blas'):
         for _ in range(200):
             batch.step()

@@ -20,6 +20,7 @@ import pytest
 from drill_twin.config import load_config
 from drill_twin.model.bit_rock import BitRockLaw
 from drill_twin.integrator.simulator import Simulator
+from drill_twin.rig.rig import Rig
 
 SPEED = 2.0                        # rad/s
 PICK_UP_M = 2.0
@@ -32,11 +33,12 @@ class Driller:
 
     def __init__(self, simulator: Simulator):
         self.sim = simulator
+        self.rig = Rig(simulator)
         self.integral = 0.0
         self.rows = []
 
     def step(self):
-        self.sim.step()
+        self.rig.step()
         o = self.sim.observe(detailed=1)
         self.rows.append((self.sim.time_s, o.bit_depth_m[0], o.hole_depth_m[0], o.on_bottom[0],
                           o.rop_m_per_s[0], o.weight_on_bit_n[0], o.torque_on_bit_nm[0],
@@ -45,25 +47,25 @@ class Driller:
         return o
 
     def drill(self, seconds, hook_load_n):
-        self.sim.set_hook_load(hook_load_n)
+        self.rig.set_hook_load(hook_load_n)
         for _ in range(_steps(self.sim, seconds)):
             self.step()
 
     def ramp(self, seconds, hook_load_n):
-        start = self.sim.hook_load_command_n
+        start = self.rig.hook_load_command_n
         n = _steps(self.sim, seconds)
         for k in range(1, n + 1):
-            self.sim.set_hook_load(start + (hook_load_n - start) * k / n)
+            self.rig.set_hook_load(start + (hook_load_n - start) * k / n)
             self.step()
 
     def move_block(self, speed_m_per_s, until, limit_s=60.0):
         """PI loop on the top's velocity (m/s, > 0 down) until ``until(observation)``."""
         o = self.sim.observe(detailed=1)
-        base = self.sim.hook_load_command_n - self.integral
+        base = self.rig.hook_load_command_n - self.integral
         for _ in range(_steps(self.sim, limit_s)):
             error = o.hook_velocity_m_per_s[0] - speed_m_per_s
             self.integral += INTEGRAL_N_PER_M * error * self.sim.dt
-            self.sim.set_hook_load(base + GAIN_N_S_PER_M * error + self.integral)
+            self.rig.set_hook_load(base + GAIN_N_S_PER_M * error + self.integral)
             o = self.step()
             if until(o):
                 return

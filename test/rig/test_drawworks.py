@@ -15,10 +15,10 @@ from scipy.integrate import solve_ivp
 
 from drill_twin.config import load_config
 from drill_twin.model.bit_rock import BitRockLaw
-from drill_twin.rig.drawworks import line_hook_load_n
-from drill_twin.rig.drives import attach_drives, drawworks_of, set_axial_mode
-from drill_twin.integrator.simulator import Simulator
 from drill_twin.integrator.envelope import StringEnvelope
+from drill_twin.integrator.simulator import SimulationDiverged, Simulator
+from drill_twin.rig.drawworks import line_hook_load_n
+from drill_twin.rig.rig import Rig
 
 QUIET = ['physics.contact=false', 'physics.kinetic_coupling=false',
          'physics.finite_strain=false', 'reduced_basis.lateral_modes=0',
@@ -46,12 +46,12 @@ def test_block_velocity_holds_the_string_in_static_equilibrium():
     config = load_config(overrides=QUIET + ['drawworks.mode=block_velocity',
                                             f'drawworks.block_velocity_m_per_s={rop}'])
     simulator = Simulator(config)
-    attach_drives(simulator)
-    drawworks = drawworks_of(simulator)
+    rig = Rig(simulator)
+    drawworks = rig.drawworks
     envelope = StringEnvelope.of(simulator.system)
     balance, drag = [], []
     for k in range(int(round(6.0 / simulator.dt))):
-        simulator.step()
+        rig.step()
         if simulator.time_s > 3.0:
             observed = simulator.observe(detailed=1)
             hook = line_hook_load_n(drawworks)
@@ -86,7 +86,7 @@ def test_autodriller_step_response_on_wob_matches_the_linearised_loop():
     config = load_config(overrides=QUIET + ['drawworks.mode=autodriller',
                                             f'drawworks.weight_on_bit_setpoint_n={setpoint}'])
     simulator = Simulator(config)
-    attach_drives(simulator)
+    rig = Rig(simulator)
     law = BitRockLaw.from_config(config.bit_rock)
     omega = config.operation.top_drive_speed_rad_per_s
     start = -config.bit_rock.static_weight_on_bit_n
@@ -107,7 +107,7 @@ def test_autodriller_step_response_on_wob_matches_the_linearised_loop():
                        atol=1e-9).y[0]
     wob = []
     for _ in times:
-        simulator.step()
+        rig.step()
         wob.append(-simulator.last.weight_on_bit_n[0])
     wob = np.array(wob)
     assert closed[-1] - start > 0.9 * (setpoint - start)                 # it got there
@@ -117,21 +117,46 @@ def test_autodriller_step_response_on_wob_matches_the_linearised_loop():
 def test_axial_input_switches_at_run_time_without_a_jump():
     config = load_config(overrides=QUIET)
     simulator = Simulator(config)
-    attach_drives(simulator)
-    assert drawworks_of(simulator) is None
+    rig = Rig(simulator)
+    assert rig.drawworks is None
     for _ in range(50):
-        simulator.step()
+        rig.step()
     before = simulator.observe().hook_load_n
-    set_axial_mode(simulator, 'autodriller')
-    drawworks = drawworks_of(simulator)
-    drawworks.set_weight_on_bit_setpoint(-simulator.last.weight_on_bit_n[0])
-    simulator.step()
+    rig.set_axial_mode('autodriller')
+    rig.set_weight_on_bit_setpoint(-simulator.last.weight_on_bit_n[0])
+    rig.step()
     assert simulator.observe().hook_load_n == pytest.approx(before, abs=200.0)
-    set_axial_mode(simulator, 'hook_load')
-    assert drawworks_of(simulator) is None
-    held = simulator.hook_load_command_n
-    simulator.step()
+    rig.set_axial_mode('hook_load')
+    assert rig.drawworks is None
+    held = rig.hook_load_command_n
+    rig.step()
     assert simulator.observe().hook_load_n == held
+
+
+def test_a_refused_step_puts_the_block_and_the_line_back():
+    """
+    When the simulator refuses a step, the rig's checkpoint puts the drawworks back.
+
+    The block's position and velocity, the autodriller's integral and the hook load the line
+    pulled: all as before the step (the refused step had moved them).
+    """
+    config = load_config(overrides=QUIET + ['drawworks.mode=autodriller',
+                                            'drawworks.weight_on_bit_setpoint_n=100e3'])
+    simulator = Simulator(config)
+    rig = Rig(simulator)
+    for _ in range(20):
+        rig.step()
+    before, hook = rig.drawworks.state.copy(), rig.hook_load_command_n
+    checkpoint = rig.checkpoint()
+    rig.inputs()
+    assert rig.drawworks.state != before
+    rig.restore(checkpoint)
+    # A state the simulator cannot step (the drawworks reads the axial block only).
+    simulator.state.q_rate[0, simulator.system.blocks['torsional'].columns] = np.nan
+    with pytest.raises(SimulationDiverged):
+        rig.step()
+    assert rig.drawworks.state == before and rig.hook_load_command_n == hook
+    assert rig.axial_mode.value == 'autodriller'
 
 
 def test_the_block_accelerates_at_most_at_the_drums_limit():
@@ -144,15 +169,15 @@ def test_the_block_accelerates_at_most_at_the_drums_limit():
     limit = 0.25
     config = load_config(overrides=QUIET + [f'drawworks.block_acceleration_max_m_per_s2={limit}'])
     simulator = Simulator(config)
-    attach_drives(simulator)
-    set_axial_mode(simulator, 'block_velocity')
-    drawworks = drawworks_of(simulator)
-    drawworks.set_block_velocity(-0.5)
-    start = drawworks.block_velocity_m_per_s
+    rig = Rig(simulator)
+    rig.set_axial_mode('block_velocity')
+    drawworks = rig.drawworks
+    rig.set_block_velocity(-0.5)
+    start = drawworks.state.block_velocity_m_per_s
     velocities = []
     for _ in range(int(round(3.0 / simulator.dt))):
-        simulator.step()
-        velocities.append(drawworks.block_velocity_m_per_s)
+        rig.step()
+        velocities.append(drawworks.state.block_velocity_m_per_s)
     velocities = np.array(velocities)
     steps_to_reach = int(math.ceil((start + 0.5) / (limit * simulator.dt)))
     ramp = start - limit * simulator.dt * np.arange(1, steps_to_reach)
@@ -172,18 +197,18 @@ def test_a_restart_from_a_safe_state_puts_the_block_where_the_line_holds_it():
     config = load_config(overrides=QUIET + ['drawworks.mode=block_velocity',
                                             'drawworks.block_velocity_m_per_s=-0.3'])
     simulator = Simulator(config)
-    attach_drives(simulator)
-    drawworks = drawworks_of(simulator)
+    rig = Rig(simulator)
+    drawworks = rig.drawworks
     for _ in range(int(round(3.0 / simulator.dt))):      # lifting: the top has moved
-        simulator.step()
-    simulator.reset_members([0])
+        rig.step()
+    rig.reset_members([0])
     assert line_hook_load_n(drawworks) == pytest.approx(
-        simulator.hook_load_command_n, rel=1e-9, abs=1.0 + drawworks.line_damping * abs(
-            drawworks.top.now()[1] - drawworks.block_velocity_m_per_s))
+        rig.hook_load_command_n, rel=1e-9, abs=1.0 + drawworks.line_damping * abs(
+            drawworks.top.now()[1] - drawworks.state.block_velocity_m_per_s))
     # The safe state is at rest off bottom while the block goes on rising: the next step's hook
     # load differs by the line's damping and one step of stretch, not k_line x 0.9 m (18 MN).
-    held = simulator.hook_load_command_n
-    simulator.step()
+    held = rig.hook_load_command_n
+    rig.step()
     speed = 0.3
     bound = (drawworks.line_damping * speed + drawworks.line_stiffness * speed * simulator.dt
              + 0.01 * held)
@@ -200,19 +225,19 @@ def test_the_autodriller_feeds_line_and_never_hoists():
     """
     config = load_config(overrides=QUIET + ['drawworks.block_acceleration_max_m_per_s2=0.5'])
     simulator = Simulator(config)
-    attach_drives(simulator)
-    set_axial_mode(simulator, 'block_velocity')
-    drawworks = drawworks_of(simulator)
-    drawworks.set_block_velocity(-0.5)
+    rig = Rig(simulator)
+    rig.set_axial_mode('block_velocity')
+    drawworks = rig.drawworks
+    rig.set_block_velocity(-0.5)
     for _ in range(int(round(3.0 / simulator.dt))):     # the string rises at 0.5 m/s
-        simulator.step()
+        rig.step()
     assert simulator.observe().hook_velocity_m_per_s[0] < -0.4
-    drawworks.set_weight_on_bit_setpoint(0.0)
-    set_axial_mode(simulator, 'autodriller')
+    rig.set_weight_on_bit_setpoint(0.0)
+    rig.set_axial_mode('autodriller')
     velocities = []
     for _ in range(int(round(3.0 / simulator.dt))):
-        simulator.step()
-        velocities.append(drawworks.block_velocity_m_per_s)
+        rig.step()
+        velocities.append(drawworks.state.block_velocity_m_per_s)
     assert velocities[0] < -0.4                         # bumpless: from the string's speed
     assert np.all(np.diff(velocities) >= -1e-12)        # braking, never hoisting harder
     assert velocities[-1] == 0.0
@@ -231,23 +256,23 @@ def test_the_autodriller_engaged_on_a_running_block_stays_within_its_feed_rate()
     """
     config = load_config(overrides=QUIET + ['drawworks.mode=block_velocity'])
     simulator = Simulator(config)
-    attach_drives(simulator)
-    drawworks = drawworks_of(simulator)
-    simulator.set_top_drive_speed(0.0)
+    rig = Rig(simulator)
+    drawworks = rig.drawworks
+    rig.set_top_drive_speed(0.0)
     for _ in range(int(round(5.0 / simulator.dt))):        # the bit stops on bottom
-        simulator.step()
+        rig.step()
     start = 0.2
-    drawworks.set_block_velocity(start)
-    while drawworks.block_velocity_m_per_s < start:
-        simulator.step()
+    rig.set_block_velocity(start)
+    while drawworks.state.block_velocity_m_per_s < start:
+        rig.step()
     setpoint = 200e3
-    drawworks.set_weight_on_bit_setpoint(setpoint)
-    set_axial_mode(simulator, 'autodriller')
+    rig.set_weight_on_bit_setpoint(setpoint)
+    rig.set_axial_mode('autodriller')
     wob, block = [], []
     for _ in range(int(round(40.0 / simulator.dt))):
-        simulator.step()
+        rig.step()
         wob.append(-simulator.last.weight_on_bit_n[0])
-        block.append(drawworks.block_velocity_m_per_s)
+        block.append(drawworks.state.block_velocity_m_per_s)
     feed_max = config.drawworks.autodriller_feed_rate_max_m_per_s
     kp = config.drawworks.autodriller_proportional_m_per_s_per_n
     deceleration = config.drawworks.block_acceleration_max_m_per_s2
@@ -274,15 +299,16 @@ def _pick_up_and_drop(brake: str):
     config = load_config(None, QUIET + ['integration.time_step_s=0.005',
                                         f'drawworks.block_speed_max_m_per_s={brake}'])
     simulator = Simulator(config)
-    weight = simulator.hook_load_command_n - config.bit_rock.static_weight_on_bit_n
-    simulator.set_hook_load(weight - 250e3)
+    rig = Rig(simulator)
+    weight = rig.hook_load_command_n - config.bit_rock.static_weight_on_bit_n
+    rig.set_hook_load(weight - 250e3)
     for _ in range(1000):
-        simulator.step()
+        rig.step()
     rows = []
     for seconds, command in ((10.0, weight + 50e3), (20.0, weight - 250e3)):
-        simulator.set_hook_load(command)
+        rig.set_hook_load(command)
         for _ in range(int(round(seconds / simulator.dt))):
-            simulator.step()
+            rig.step()
             o = simulator.observe(detailed=1)
             assert np.ndim(o.hook_load_n) == 0                # one member: one hook load
             rows.append((simulator.time_s, float(o.hook_velocity_m_per_s[0]),

@@ -7,6 +7,7 @@ string, the torque limit, and the energy balance over a stick-slip cycle.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -14,10 +15,13 @@ import pytest
 from scipy.optimize import brentq
 from scipy.signal import find_peaks
 
-from drill_twin.config import ConfigError, load_config
 from drill_twin.analysis.drive_energy import EnergyMeter
-from drill_twin.integrator.simulator import Simulator, TopDrive
-from drill_twin.rig.top_drive import DynamicTopDrive, attach_top_drive
+from drill_twin.config import ConfigError, load_config
+from drill_twin.integrator.simulator import SimulationDiverged, Simulator
+from drill_twin.rig.drawworks import DrawworksState, FollowedBlockState
+from drill_twin.rig.rig import Rig, RigCommands
+from drill_twin.rig.top_drive import (DynamicState, DynamicTopDrive, FollowedState,
+                                      KinematicState, KinematicTopDrive, TopDriveMode)
 
 LINEAR = ['physics.' + name + '=false' for name in (
     'gravity', 'prestress', 'fluid', 'stabilizers', 'contact', 'bit_rock', 'kinetic_coupling',
@@ -28,10 +32,8 @@ LINEAR = ['physics.' + name + '=false' for name in (
 """A purely torsional, undamped string with a dynamic top drive."""
 
 
-def _simulator(overrides):
-    simulator = Simulator(load_config(overrides=overrides))
-    attach_top_drive(simulator)
-    return simulator
+def _rig(overrides) -> Rig:
+    return Rig(Simulator(load_config(overrides=overrides)))
 
 
 def shaft_frequencies_hz(config, inertia, spring, f_max_hz, bit_inertia=0.0):
@@ -76,10 +78,10 @@ def test_defaults_keep_the_papers_kinematic_drive(default_config):
     assert default_config.top_drive.mode == 'kinematic'
     assert default_config.top_drive.controller == 'stiff'
     assert default_config.drawworks.mode == 'hook_load'
-    simulator = Simulator(load_config(overrides=[
-        'reduced_basis.lateral_modes=0', 'initial_conditions.lateral_deflection_m=0']))
-    attach_top_drive(simulator)
-    assert type(simulator.top_drive) is TopDrive
+    rig = Rig(Simulator(load_config(overrides=[
+        'reduced_basis.lateral_modes=0', 'initial_conditions.lateral_deflection_m=0'])))
+    assert type(rig.top_drive) is KinematicTopDrive
+    assert rig.top_drive_mode is TopDriveMode.KINEMATIC and rig.drawworks is None
 
 
 @pytest.mark.parametrize('item, key', [
@@ -105,17 +107,19 @@ def test_the_predicted_string_torque_is_the_simulators_for_a_linear_string():
     The one-step predictor must replay the simulator's Newmark step exactly (the coupling then
     has no lag).
     """
-    simulator = _simulator(LINEAR + ['reduced_basis.torsional_modes=6',
-                                     'top_drive.proportional_gain_nm_s_per_rad=0',
-                                     'top_drive.integral_gain_nm_per_rad=3e4'])
-    drive = simulator.top_drive
+    rig = _rig(LINEAR + ['reduced_basis.torsional_modes=6',
+                         'top_drive.proportional_gain_nm_s_per_rad=0',
+                         'top_drive.integral_gain_nm_per_rad=3e4'])
+    simulator, drive = rig.simulator, rig.top_drive
     assert isinstance(drive, DynamicTopDrive)
-    simulator.set_top_drive_speed(drive.speed_rad_per_s + 1.0)
+    rig.set_top_drive_speed(drive.speed_rad_per_s + 1.0)
     largest = 0.0
     for _ in range(200):
-        simulator.step()
+        rig.step()
         observed = simulator.observe().top_torque_nm[0]
-        assert drive.predicted_string_torque_nm == pytest.approx(observed, rel=1e-9, abs=1e-6)
+        assert drive.state.predicted_string_torque_nm == pytest.approx(observed, rel=1e-9,
+                                                                       abs=1e-6)
+        assert drive.string.measured() == pytest.approx(observed, rel=1e-12, abs=1e-9)
         largest = max(largest, abs(observed))
     assert largest > 100.0                                    # the string was loaded
 
@@ -129,29 +133,29 @@ def test_eigenfrequencies_with_the_drive_inertia_and_pi_stiffness_match_the_shaf
     two-section shaft within 0.5 %.
     """
     inertia, spring = 2000.0, 3.0e4
-    simulator = _simulator(LINEAR + ['reduced_basis.torsional_modes=12',
-                                     'top_drive.proportional_gain_nm_s_per_rad=0',
-                                     f'top_drive.integral_gain_nm_per_rad={spring}',
-                                     f'top_drive.inertia_kg_m2={inertia}'])
-    expected = shaft_frequencies_hz(simulator.config, inertia, spring, 1.5)
+    rig = _rig(LINEAR + ['reduced_basis.torsional_modes=12',
+                         'top_drive.proportional_gain_nm_s_per_rad=0',
+                         f'top_drive.integral_gain_nm_per_rad={spring}',
+                         f'top_drive.inertia_kg_m2={inertia}'])
+    expected = shaft_frequencies_hz(rig.config, inertia, spring, 1.5)
     assert expected.size == 3
-    start = simulator.top_drive.speed_rad_per_s
-    simulator.set_top_drive_speed(start + 1.0)
+    start = rig.top_drive.speed_rad_per_s
+    rig.set_top_drive_speed(start + 1.0)
     samples = []
     for k in range(2400):
-        simulator.step()
+        rig.step()
         if k % 4 == 3:
-            samples.append(simulator.top_drive.speed_rad_per_s - start - 1.0)
-    measured = pencil_frequencies_hz(np.array(samples), 4 * simulator.dt, 10)
+            samples.append(rig.top_drive.speed_rad_per_s - start - 1.0)
+    measured = pencil_frequencies_hz(np.array(samples), 4 * rig.simulator.dt, 10)
     assert measured[:3] == pytest.approx(expected, rel=5e-3)
 
 
 def _rigid_string(dt, kp, ki, inertia):
-    return _simulator(LINEAR + ['reduced_basis.torsional_modes=0', 'reduced_basis.axial_modes=0',
-                                f'integration.time_step_s={dt}',
-                                f'top_drive.proportional_gain_nm_s_per_rad={kp}',
-                                f'top_drive.integral_gain_nm_per_rad={ki}',
-                                f'top_drive.inertia_kg_m2={inertia}'])
+    return _rig(LINEAR + ['reduced_basis.torsional_modes=0', 'reduced_basis.axial_modes=0',
+                          f'integration.time_step_s={dt}',
+                          f'top_drive.proportional_gain_nm_s_per_rad={kp}',
+                          f'top_drive.integral_gain_nm_per_rad={ki}',
+                          f'top_drive.inertia_kg_m2={inertia}'])
 
 
 def test_pi_step_response_on_a_rigid_string_matches_the_closed_form():
@@ -163,16 +167,16 @@ def test_pi_step_response_on_a_rigid_string_matches_the_closed_form():
     kp, ki, inertia, step = 2.0e4, 5.0e4, 2000.0, 1.0
     errors = []
     for dt in (0.005, 0.0025):
-        simulator = _rigid_string(dt, kp, ki, inertia)
-        total = inertia + simulator.top_drive.string.string_inertia_kg_m2
-        assert simulator.system.blocks['torsional'].shapes.shape[1] == 0
-        start = simulator.top_drive.speed_rad_per_s
-        simulator.set_top_drive_speed(start + step)
+        rig = _rigid_string(dt, kp, ki, inertia)
+        total = inertia + rig.top_drive.string.string_inertia_kg_m2
+        assert rig.simulator.system.blocks['torsional'].shapes.shape[1] == 0
+        start = rig.top_drive.speed_rad_per_s
+        rig.set_top_drive_speed(start + step)
         times, speeds = [], []
         for _ in range(int(round(3.0 / dt))):
-            simulator.step()
-            times.append(simulator.time_s)
-            speeds.append(simulator.top_drive.speed_rad_per_s)
+            rig.step()
+            times.append(rig.simulator.time_s)
+            speeds.append(rig.top_drive.speed_rad_per_s)
         roots = np.roots([total, kp, ki])
         amplitudes = np.linalg.solve([[1, 1], roots], [step, -kp * step / total])
         error = np.real(amplitudes @ np.exp(np.outer(roots, times)))
@@ -185,21 +189,20 @@ def test_pi_step_response_on_a_rigid_string_matches_the_closed_form():
 
 def test_the_motor_torque_is_limited_and_the_integral_does_not_wind_up():
     limit = 5.0e3
-    simulator = _simulator(LINEAR + ['reduced_basis.torsional_modes=0',
-                                     'reduced_basis.axial_modes=0',
-                                     f'top_drive.torque_limit_nm={limit}'])
-    drive = simulator.top_drive
+    rig = _rig(LINEAR + ['reduced_basis.torsional_modes=0', 'reduced_basis.axial_modes=0',
+                         f'top_drive.torque_limit_nm={limit}'])
+    drive = rig.top_drive
     total = drive.inertia_kg_m2 + drive.string.string_inertia_kg_m2
     start = drive.speed_rad_per_s
-    simulator.set_top_drive_speed(start + 5.0)
-    simulator.step()
-    assert drive.saturated and drive.motor_torque_nm == limit
-    assert (drive.speed_rad_per_s - start) / simulator.dt == pytest.approx(limit / total,
-                                                                           rel=1e-9)
-    integral = drive.loop.integral_torque_nm
+    rig.set_top_drive_speed(start + 5.0)
+    rig.step()
+    assert drive.state.saturated and drive.state.motor_torque_nm == limit
+    assert (drive.speed_rad_per_s - start) / rig.simulator.dt == pytest.approx(limit / total,
+                                                                               rel=1e-9)
+    integral = drive.state.integral_torque_nm
     for _ in range(100):
-        simulator.step()
-    assert drive.saturated and drive.loop.integral_torque_nm == integral
+        rig.step()
+    assert drive.state.saturated and drive.state.integral_torque_nm == integral
 
 
 def test_energy_balance_over_a_stick_slip_cycle():
@@ -209,15 +212,16 @@ def test_energy_balance_over_a_stick_slip_cycle():
     The change of drive and string torsional energy plus dissipation, over one stick-slip
     cycle of the paper's string (lateral motion off), within 1 % of the motor work.
     """
-    simulator = _simulator([
+    rig = _rig([
         'physics.contact=false', 'physics.kinetic_coupling=false',
         'physics.finite_strain=false', 'reduced_basis.lateral_modes=0',
         'initial_conditions.lateral_deflection_m=0', 'top_drive.mode=dynamic'])
-    meter = EnergyMeter(simulator)
+    simulator = rig.simulator
+    meter = EnergyMeter(rig)
     meter.start()
     speed, budgets = [], []
     for _ in range(int(round(9.5 / simulator.dt))):
-        simulator.step()
+        rig.step()
         meter.record()
         speed.append(simulator.last.bit_speed_rad_per_s[0])
         budgets.append((meter.budget.motor_work_j, meter.budget.residual_j))
@@ -232,25 +236,40 @@ def test_energy_balance_over_a_stick_slip_cycle():
     assert abs(residual) < 0.01 * motor
 
 
-def test_the_simulator_attaches_the_configured_drive_and_a_failed_step_is_undone():
+def test_the_rig_takes_the_configured_drive_and_a_refused_step_puts_it_back():
     """
-    Built from a config with ``top_drive.mode: dynamic`` the simulator drives the dynamic drive.
+    Built from a config with ``top_drive.mode: dynamic`` the rig drives the dynamic drive.
 
-    The simulator drives its top with the dynamic drive; the speed set back after a failed step
-    restores the drive's state.
+    When the simulator refuses a step (SimulationDiverged), the rig's checkpoint puts the
+    drive back as it was before the step: speed, PI integral, motor torque.
     """
-    simulator = Simulator(load_config(overrides=LINEAR + ['reduced_basis.torsional_modes=2']))
-    drive = simulator.top_drive
-    assert isinstance(drive, DynamicTopDrive)
-    attach_top_drive(simulator)
-    assert simulator.top_drive is drive                      # attaching twice changes nothing
+    rig = _rig(LINEAR + ['reduced_basis.torsional_modes=2'])
+    drive = rig.top_drive
+    assert isinstance(drive, DynamicTopDrive) and rig.top_drive_mode is TopDriveMode.DYNAMIC
     start = drive.speed_rad_per_s
-    simulator.set_top_drive_speed(start + 0.1)                # below the torque limit
-    simulator.step()
-    assert not drive.saturated
-    integral, motor = drive.loop.integral_torque_nm, drive.motor_torque_nm
-    speed = drive.speed_rad_per_s
-    drive.advance(start + 0.1, simulator.dt)                 # a step that will be discarded
-    assert drive.loop.integral_torque_nm != integral
-    drive.speed_rad_per_s = speed                            # what the simulator does then
-    assert (drive.loop.integral_torque_nm, drive.motor_torque_nm) == (integral, motor)
+    rig.set_top_drive_speed(start + 0.1)                      # below the torque limit
+    rig.step()
+    assert not drive.state.saturated
+    before = drive.state.copy()
+    checkpoint = rig.checkpoint()
+    rig.inputs()                                              # a step that will be discarded
+    assert drive.state.integral_torque_nm != before.integral_torque_nm
+    rig.restore(checkpoint)
+    assert rig.top_drive is drive and drive.state == before
+    # A state the simulator cannot step (the drive reads the torsional block only).
+    rig.simulator.state.q_rate[0, rig.simulator.system.blocks['axial'].columns] = np.nan
+    with pytest.raises(SimulationDiverged):
+        rig.step()                                            # refused: the drive is put back
+    assert drive.state == before
+
+
+@pytest.mark.parametrize('kind', [KinematicState, FollowedState, DynamicState, DrawworksState,
+                                  FollowedBlockState, RigCommands])
+def test_a_checkpoints_copy_of_a_state_keeps_every_field(kind):
+    """Every field of the rig's state dataclasses survives ``copy()`` (what a checkpoint keeps)."""
+    fields = dataclasses.fields(kind)
+    values = [float(k + 1) for k in range(len(fields))]
+    state = kind(*values)
+    copied = state.copy()
+    assert copied is not state
+    assert [getattr(copied, f.name) for f in fields] == values

@@ -13,7 +13,9 @@ import numpy as np
 from drill_twin.config import load_config
 from drill_twin.rig.controllers import Impedance, SoftTorque, Stiff, make_controller
 from drill_twin.integrator.simulator import Simulator
-from drill_twin.rig.top_drive import attach_top_drive, characteristic_impedance
+from drill_twin.rig.rig import Rig
+from drill_twin.rig.top_drive import (DynamicTopDrive, KinematicTopDrive, TopDriveMode,
+                                      characteristic_impedance)
 from drill_twin.analysis.torsional_pulse import reflection_coefficient, upward_pulse
 
 PIPE = """
@@ -81,15 +83,15 @@ def test_reflection_of_a_torsional_pulse_at_the_top(tmp_path, controller, low, h
     wave_speed = math.sqrt(section.shear_correction_factor * section.shear_modulus_pa
                            / section.density_kg_per_m3)
     simulator = Simulator(config)
+    rig = Rig(simulator)
     q, rate = simulator.state.q.copy(), simulator.state.q_rate.copy()
     columns = simulator.system.blocks['torsional'].columns
     q[:, columns], rate[:, columns] = upward_pulse(simulator.system, 3000.0, 400.0, 0.5,
                                                    wave_speed)
     simulator.reset(q, rate)
-    attach_top_drive(simulator)
     times, speeds = [], []
     for _ in range(int(round(2.4 / simulator.dt))):
-        simulator.step()
+        rig.step()
         times.append(simulator.time_s)
         speeds.append(simulator.observe().station_spin_rate_rad_per_s[0, 0, 0])
     speeds = np.array(speeds)
@@ -99,30 +101,34 @@ def test_reflection_of_a_torsional_pulse_at_the_top(tmp_path, controller, low, h
 
 
 def test_top_drive_mode_and_controller_switch_at_run_time_without_a_jump():
-    from drill_twin.rig.drives import set_top_drive_mode, set_torque_limit, top_drive_of
-    from drill_twin.integrator.simulator import TopDrive
-    from drill_twin.rig.top_drive import DynamicTopDrive
     simulator = Simulator(load_config(overrides=[
         'physics.contact=false', 'physics.kinetic_coupling=false',
         'physics.finite_strain=false', 'reduced_basis.lateral_modes=0',
         'initial_conditions.lateral_deflection_m=0', 'initial_conditions.steady_twist=true']))
+    rig = Rig(simulator)
     for _ in range(20):
-        simulator.step()
-    speed = simulator.top_drive.speed_rad_per_s
-    set_top_drive_mode(simulator, 'dynamic', 'impedance')
-    drive = top_drive_of(simulator)
+        rig.step()
+    speed = rig.top_drive.speed_rad_per_s
+    rig.set_top_drive_mode('dynamic', 'impedance')
+    drive = rig.top_drive
     assert isinstance(drive, DynamicTopDrive) and isinstance(drive.controller, Impedance)
-    assert drive.motor_torque_nm == pytest.approx(simulator.observe().top_torque_nm[0])
-    simulator.step()
+    assert rig.top_drive_mode is TopDriveMode.DYNAMIC and rig.commands.controller == 'impedance'
+    assert drive.state.motor_torque_nm == pytest.approx(simulator.observe().top_torque_nm[0])
+    rig.step()
     assert drive.speed_rad_per_s == pytest.approx(speed, abs=1e-3)
-    set_torque_limit(simulator, 5e3)
-    assert drive.loop.limit == 5e3
+    rig.set_torque_limit(5e3)
+    assert drive.state.torque_limit_nm == 5e3
     with pytest.raises(ValueError):
-        set_torque_limit(simulator, -1.0)
-    set_top_drive_mode(simulator, 'kinematic')
-    assert type(top_drive_of(simulator)) is TopDrive
-    simulator.step()
-    assert simulator.top_drive.speed_rad_per_s == pytest.approx(speed, abs=2e-2)
+        rig.set_torque_limit(-1.0)
+    with pytest.raises(ValueError, match='hydraulic'):
+        rig.set_top_drive_mode('hydraulic')
+    rig.set_top_drive_mode('kinematic')
+    assert type(rig.top_drive) is KinematicTopDrive
+    rig.step()
+    assert rig.top_drive.speed_rad_per_s == pytest.approx(speed, abs=2e-2)
+    rig.set_top_drive_mode(TopDriveMode.DYNAMIC)             # the torque limit was kept
+    assert rig.top_drive.state.torque_limit_nm == 5e3
+    assert isinstance(rig.top_drive.controller, Impedance)
 
 
 def _system(config):

@@ -12,7 +12,6 @@ import numpy as np
 import pytest
 
 from drill_twin.config import load_config
-from drill_twin.rig.drives import drawworks_of
 from drill_twin.twin.engine import TwinEngine
 from drill_twin.twin.ensemble import EnsembleSettings
 
@@ -32,9 +31,10 @@ def picked_up():
     def run(seconds):
         for _ in range(int(round(seconds / 0.01))):
             engine.advance(1)
-            drawworks = drawworks_of(engine.simulator)
+            drawworks = engine.rig.drawworks
             o = ensemble.observe()
-            rows.append((engine.time_s, None if drawworks is None else drawworks.block_position_m,
+            rows.append((engine.time_s,
+                         None if drawworks is None else drawworks.state.block_position_m,
                          o.hook_position_m.copy(), np.broadcast_to(o.hook_load_n, (6,)).copy(),
                          o.hole_depth_m - o.bit_depth_m, o.on_bottom.copy()))
 
@@ -76,8 +76,7 @@ def test_every_member_hangs_from_the_block(picked_up):
     np.testing.assert_allclose(rise_tops, rise_block - stretch, atol=0.02 * rise_block)
     assert np.ptp(up[3]) > 0.0                         # one hook load per member
     assert np.all(up[4] > 1.0)                         # every bit off bottom
-    drawworks = drawworks_of(engine.simulator)
-    assert drawworks.mode == 'autodriller'
+    assert engine.rig.drawworks is not None and engine.axial_mode == 'autodriller'
 
 
 def test_members_set_down_and_drill_without_a_reset(picked_up):

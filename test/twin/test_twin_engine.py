@@ -278,7 +278,7 @@ def test_the_torque_limit_command_is_bounded_by_its_node_parameter(config):
         engine.set_top_drive_torque_limit(90e3)
     with pytest.raises(CommandRejected, match='must be > 0 N m'):
         engine.set_top_drive_torque_limit(0.0)
-    assert engine._torque_limit_nm == 60e3
+    assert engine.rig.commands.torque_limit_nm == 60e3
 
 
 def test_a_hook_load_step_that_the_drums_brake_holds_goes_through_the_twin(config):
@@ -315,7 +315,7 @@ def test_a_landing_is_reported_at_its_touch_down_with_the_impacts_peak_weight_on
     rock's spring the impact builds over several steps, so the peak is well above the
     touch-down step's WOB.
     """
-    from drill_twin.twin.engine import LANDING_PEAK_WINDOW_S
+    from drill_twin.twin.watch import LANDING_PEAK_WINDOW_S
     config = load_config(None, ['integration.time_step_s=0.005'])
     with threadpool_limits(limits=1, user_api='blas'):
         engine = _engine(config, members=0)
@@ -360,9 +360,9 @@ def test_a_landing_whose_weight_on_bit_still_rises_is_reported_at_the_windows_en
     touch-down (read step by step here) although the WOB is still rising: a bit set down
     slowly is not left unreported for as long as its WOB grows.
     """
-    import drill_twin.twin.engine as engine_module
+    import drill_twin.twin.watch as watch_module
     window = 0.02
-    monkeypatch.setattr(engine_module, 'LANDING_PEAK_WINDOW_S', window)
+    monkeypatch.setattr(watch_module, 'LANDING_PEAK_WINDOW_S', window)
     config = load_config(None, ['integration.time_step_s=0.005'])
     with threadpool_limits(limits=1, user_api='blas'):
         engine = _engine(config, members=0)
