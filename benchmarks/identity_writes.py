@@ -8,8 +8,9 @@ the filter's prior) are stepped ``--settle`` s, then ``--duration`` s twice: onc
 once with their analysed state written back unchanged (``MemberState.write(extract())``)
 every ``--every`` steps (40: the filter's 5 Hz). The hole's mean rate of each member over
 the second part is printed for both, and the jumps of the hole at the writes. With
-``--law-only`` the state evaluation reads the law at the bit's velocities (what it did before
-2026-12-03), which for a bit resting on the compliant rock's spring is not the force it bears.
+``--law-only`` the state evaluation reads the law at the bit's velocities
+(``NewmarkIntegrator.evaluate(bearing=False)``), which for a bit resting on the compliant
+rock's spring is not the force it bears.
 """
 from __future__ import annotations
 
@@ -64,7 +65,8 @@ def main() -> None:
     plain, _ = drilled(config, germs, scales, args.settle, args.duration, 0)
     written, jumps = drilled(config, germs, scales, args.settle, args.duration, args.every)
     np.set_printoptions(precision=3, suppress=True, linewidth=120)
-    print(f'state evaluation: {"the law at the velocities" if args.law_only else "the force the rock bears"}')
+    evaluation = 'the law at the velocities' if args.law_only else 'the force the rock bears'
+    print(f'state evaluation: {evaluation}')
     print('hole rate, mm/s, as stepped:          ', plain * 1e3)
     print(f'hole rate, mm/s, written every {args.every} steps:', written * 1e3)
     print('of which the writes\' jumps, mm/s:     ', jumps * 1e3)

@@ -14,9 +14,11 @@ PACKAGE = REPO / 'drill_twin'
 MAX_MODULE_LINES = 600
 MAX_NODE_MODULE_LINES = 400
 MAX_FUNCTION_LINES = 80
-# The compiled Newmark step: one numba function so that the whole iteration stays in
-# registers and the batch loop is not split across calls (docs/ARCHITECTURE.md).
-LONG_FUNCTIONS = {'drill_twin/integrator/newmark_kernel.py': {'update'}}
+# Functions allowed beyond MAX_FUNCTION_LINES, by module, each with its reason. None at
+# present: the compiled Newmark step (integrator/newmark_kernel.py) and its iteration's update
+# (integrator/newmark_update.py) are written as parts that numba compiles into them
+# (numerics.compiled.inline): an iteration's update is still one compiled function.
+LONG_FUNCTIONS: dict[str, set[str]] = {}
 
 
 def _modules():

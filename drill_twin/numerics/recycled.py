@@ -11,6 +11,9 @@ array that anything can still reach is never written again. When that set is sti
 a new set is made; the pool grows to what its caller's pattern needs (two or three sets
 for a simulator, measured) and past ``kept`` forgets its oldest set (left to whoever holds it).
 
+A set may be a namedtuple of arrays: it is handed out as a namedtuple of the same class (its
+arrays in the order it was made), so that its caller reads the arrays by name.
+
 Reference counts mean what this relies on only in CPython; elsewhere every set is new.
 """
 from __future__ import annotations
@@ -28,7 +31,8 @@ class RecycledArrays:
     """
     Sets of arrays from ``make``, each reused only when nothing but this pool holds it.
 
-    :param make: returns a new set, a tuple of arrays that nothing else references.
+    :param make: returns a new set, a tuple (or a namedtuple) of arrays that nothing else
+        references.
     :param kept: the most sets kept for reuse.
     """
 
@@ -39,6 +43,7 @@ class RecycledArrays:
         self._kept = kept
         self._sets: deque[list[np.ndarray]] = deque()
         self._free_count: int | None = None
+        self._handed = tuple                 # the sets' class: tuple, or a namedtuple's _make
         self.made = 0
         """Sets made so far (a measure of how often none was free)."""
 
@@ -48,14 +53,17 @@ class RecycledArrays:
         if sets and sum(map(sys.getrefcount, sets[0])) == self._free_count:
             arrays = sets.popleft()
             sets.append(arrays)
-            return tuple(arrays)            # a new tuple: holding it holds the arrays
-        arrays = list(self._make())
+            return self._handed(arrays)     # a new tuple: holding it holds the arrays
+        made = self._make()
+        self._handed = made._make if hasattr(made, '_fields') else tuple
+        arrays = list(made)
+        del made
         self.made += 1
         if not _COUNTS_REFERENCES:
-            return tuple(arrays)
+            return self._handed(arrays)
         if self._free_count is None:        # the count of a set held by the pool alone
             self._free_count = sum(map(sys.getrefcount, arrays))
         sets.append(arrays)
         if len(sets) > self._kept:
             sets.popleft()
-        return tuple(arrays)
+        return self._handed(arrays)

@@ -403,7 +403,7 @@ def test_members_verify_on_the_model_clocks_schedule(default_config):
     would cost the whole batch a second iteration (the 64-member ensemble ran two iterations on
     8 % of its steps that way, 4 % on the clock's).
     """
-    from drill_twin.integrator.newmark import VERIFY_EVERY
+    from drill_twin.integrator.newmark_update import VERIFY_EVERY
     from drill_twin.integrator.simulator import Simulator
     germs = np.eye(2) + np.array([0.0, 0.02, -0.03])[:, None, None] * np.array(
         [[1.0, 0.5], [0.5, -1.0]])
@@ -429,8 +429,8 @@ def test_a_large_batch_verifies_in_groups_spread_over_the_clock(default_config):
     25 (g = 0, 1, 2), and on no other step once the start is past (a whole batch verifying at
     once made the longest twin ticks).
     """
-    from drill_twin.integrator.newmark import VERIFY_EVERY
-    from drill_twin.integrator.newmark_kernel import VERIFY_GROUP, VERIFY_SPACING
+    from drill_twin.integrator.newmark_update import VERIFY_EVERY
+    from drill_twin.integrator.newmark_update import VERIFY_GROUP, VERIFY_SPACING
     from drill_twin.integrator.simulator import Simulator
     members = 2 * VERIFY_GROUP + 1
     germs = np.eye(2) + 0.01 * np.random.default_rng(4).standard_normal((members, 2, 2))
@@ -452,8 +452,8 @@ def test_groups_beyond_the_cycles_slots_verify_with_the_first_ones(default_confi
     26 and 51, or 23 and 48, where groups 8 and 9 had slots of their own: a 256-member batch
     then ran two iterations on every step). A member's schedule depends on its index only.
     """
-    from drill_twin.integrator.newmark import VERIFY_EVERY
-    from drill_twin.integrator.newmark_kernel import VERIFY_GROUP, VERIFY_SLOTS, VERIFY_SPACING
+    from drill_twin.integrator.newmark_update import VERIFY_EVERY
+    from drill_twin.integrator.newmark_update import VERIFY_GROUP, VERIFY_SLOTS, VERIFY_SPACING
     from drill_twin.integrator.simulator import Simulator
     members = (VERIFY_SLOTS + 1) * VERIFY_GROUP + 1
     germs = np.eye(2) + 0.01 * np.random.default_rng(5).standard_normal((members, 2, 2))

@@ -7,6 +7,8 @@ array, a view of it, a buffer export, a container) must therefore never change.
 """
 from __future__ import annotations
 
+from collections import namedtuple
+
 import numpy as np
 import pytest
 from conftest import coarse_string
@@ -44,6 +46,20 @@ def test_a_set_anything_still_reaches_is_never_written(hold):
     for array in fresh:
         array[...] = 1
     assert not np.any(np.asarray(held[0] if isinstance(held, list) else held))
+
+
+def test_a_set_made_as_a_namedtuple_is_handed_out_as_one():
+    pair = namedtuple('Pair', 'rates flags')
+    pool = RecycledArrays(lambda: pair(rates=np.zeros(4), flags=np.zeros(3, dtype=bool)))
+    first = pool.take()
+    assert type(first) is pair and first.rates.shape == (4,)
+    addresses = [a.ctypes.data for a in first]
+    del first
+    again = pool.take()
+    assert type(again) is pair and [a.ctypes.data for a in again] == addresses
+    held = again.flags
+    del again
+    assert pool.take().flags is not held and pool.made == 2
 
 
 def test_the_pool_grows_to_what_is_held_and_forgets_past_kept():
@@ -86,7 +102,7 @@ def test_a_simulators_kept_states_and_results_never_change_and_the_rest_is_reuse
     for state, result, values in kept:
         for held, value in zip(_values(state, result), values):
             np.testing.assert_array_equal(held, value)
-    pools = simulator.integrator._work.results, simulator.integrator._work.kept_flags
+    pools = simulator.integrator._work.outputs, simulator.integrator._work.kept
     made = [pool.made for pool in pools]
     del kept, state, result
     for _ in range(20):                   # a caller keeping nothing: two sets, then three
