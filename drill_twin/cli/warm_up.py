@@ -10,8 +10,17 @@ kernels on disk instead of compiling them each at the same time.
 """
 from __future__ import annotations
 
+from dataclasses import replace
 import sys
 import time
+
+import numpy as np
+
+from drill_twin.analysis import kpi
+from drill_twin.config.loader import load_config
+from drill_twin.integrator.simulator import Simulator
+from drill_twin.rig.rig import Rig
+from drill_twin.uncertainty.germ import germs_for_realizations
 
 
 def warm_up(steps: int = 3) -> float:
@@ -20,14 +29,6 @@ def warm_up(steps: int = 3) -> float:
 
     Off and on the wall; and the twin's KPI window. Returns the wall time it took (s).
     """
-    import numpy as np
-
-    from drill_twin.config.loader import load_config
-    from drill_twin.analysis import kpi
-    from drill_twin.integrator.simulator import Simulator
-    from drill_twin.rig.rig import Rig
-    from drill_twin.uncertainty.germ import germs_for_realizations
-
     start = time.perf_counter()
     config = load_config()
     mean = Simulator(config)
@@ -51,10 +52,6 @@ def _observe_layouts(simulator) -> None:
     flat bottom's surface is read-only, a lobed one's is not: each pair is a signature of
     :func:`~drill_twin.integrator.observed_bit.derive`.
     """
-    from dataclasses import replace
-
-    import numpy as np
-
     integrator, last = simulator.integrator, simulator.last
     flat = integrator.bottom_surface
     try:
