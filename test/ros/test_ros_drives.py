@@ -133,10 +133,10 @@ def test_drive_commands_echoes_surface_readings_and_log(drive_twin):
     assert np.all(top[t <= switched + 1e-9] == top[0])
     assert top[np.argmin(np.abs(t - switched - DT_S))] != top[0]
 
-    # The drawworks: WOB set-point and block velocity before the switch are kept.
-    for topic, value in ((itf.CMD_WOB_SETPOINT, 110e3), (itf.CMD_BLOCK_VELOCITY, 2e-3),
-                         (itf.CMD_AXIAL_MODE, 'block_velocity')):
-        twin.command(topic, value)
+    # The drawworks: WOB set-point and block velocity before the switch are kept (sent while
+    # the twin stands, they act from the same step).
+    twin.send_while_still([(itf.CMD_WOB_SETPOINT, 110e3), (itf.CMD_BLOCK_VELOCITY, 2e-3),
+                           (itf.CMD_AXIAL_MODE, 'block_velocity')])
     twin.spin_until(lambda: twin.echoes(itf.CMD_AXIAL_MODE), 'the axial switch')
     axial = stamp_ns(twin.echoes(itf.CMD_AXIAL_MODE)[-1]) * 1e-9
     assert twin.node.engine.axial_mode == 'block_velocity'

@@ -14,6 +14,7 @@ import pytest
 from conftest import REPO, ros_environment, session_domain_id
 
 DOMAIN_ID = session_domain_id('replay')             # apart from the node tests' domain
+WAIT_S = 300.0          # deadline of a wait (a loaded 2-core machine is slow; nothing is timed)
 
 
 @pytest.fixture(scope='module')
@@ -63,13 +64,13 @@ def twin_log(ros, tmp_path_factory):
         executor.add_node(probe)
         try:
             # Wait for the twin to hear the probe, then command mid-run.
-            assert _spin_until(executor, lambda: speed.get_subscription_count() > 0, 20.0)
-            assert _spin_until(executor, lambda: node.engine.time_s > 1.0, 60.0)
+            assert _spin_until(executor, lambda: speed.get_subscription_count() > 0, WAIT_S)
+            assert _spin_until(executor, lambda: node.engine.time_s > 1.0, WAIT_S)
             speed.publish(Float64(data=3.0))
             hook.publish(Float64(data=node.engine.hook_load_command - 10e3))
-            assert _spin_until(executor, lambda: node.engine.time_s > 2.0, 60.0)
+            assert _spin_until(executor, lambda: node.engine.time_s > 2.0, WAIT_S)
             speed.publish(Float64(data=6.0))
-            assert _spin_until(executor, lambda: node.done.done(), 120.0)
+            assert _spin_until(executor, lambda: node.done.done(), WAIT_S)
         finally:
             node.close()
             executor.shutdown()
@@ -98,7 +99,7 @@ def test_resimulation_reproduces_the_recorded_run(twin_log):
 def test_resimulate_command(twin_log):
     result = subprocess.run([sys.executable, '-m', 'drill_twin.cli.main', 'replay',
                              str(twin_log), '--resimulate'], capture_output=True, text=True,
-                            cwd=REPO, timeout=300)
+                            cwd=REPO, timeout=WAIT_S)
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip().endswith('identical')
     assert '100 bit states compared, 3 commands replayed' in result.stdout
@@ -165,7 +166,12 @@ def test_resimulation_detects_a_different_seed(twin_log, tmp_path):
 
 
 def test_replay_republishes_with_the_recorded_values(ros, twin_log):
-    """``drill-twin replay`` in another process; a probe here receives the bit states."""
+    """``drill-twin replay`` in another process; a probe here receives the bit states.
+
+    In the log's order and with its values, none lost between the first and the last heard
+    (reliable); ``--delay 6`` leaves time for discovery (FastDDS: 1-2 s, longer on a busy
+    machine): what is published before it completes is lost, as on a real network.
+    """
     from rclpy.executors import SingleThreadedExecutor
     from sensor_msgs.msg import JointState
 
@@ -177,27 +183,28 @@ def test_replay_republishes_with_the_recorded_values(ros, twin_log):
     for item in iter_messages(twin_log, topics=[itf.BIT_STATE]):
         stamp = item.message.header.stamp
         recorded[(stamp.sec, stamp.nanosec)] = list(item.message.velocity)
-    received = {}
+    received = []
     probe = ros.create_node('replay_probe')
 
     def keep(message):
-        received[(message.header.stamp.sec, message.header.stamp.nanosec)] = list(
-            message.velocity)
+        received.append(((message.header.stamp.sec, message.header.stamp.nanosec),
+                         list(message.velocity)))
 
     probe.create_subscription(JointState, itf.BIT_STATE, keep, rclpy_qos_profile(itf.STATE_QOS))
     executor = SingleThreadedExecutor()
     executor.add_node(probe)
     env = dict(os.environ)
     process = subprocess.Popen([sys.executable, '-m', 'drill_twin.cli.main', 'replay',
-                                str(twin_log), '--rate', '1.0', '--delay', '4'], env=env,
+                                str(twin_log), '--rate', '1.0', '--delay', '6'], env=env,
                                cwd=REPO,
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        deadline = time.monotonic() + 60
+        deadline = time.monotonic() + WAIT_S
         while process.poll() is None and time.monotonic() < deadline:
             executor.spin_once(timeout_sec=0.05)
-        _spin_until(executor, lambda: False, 0.5)
-        out, err = process.communicate(timeout=30)
+        last = sorted(recorded)[-1]
+        _spin_until(executor, lambda: received and received[-1][0] == last, 10.0)
+        out, err = process.communicate(timeout=WAIT_S)
     finally:
         if process.poll() is None:
             process.kill()
@@ -205,19 +212,19 @@ def test_replay_republishes_with_the_recorded_values(ros, twin_log):
         probe.destroy_node()
     assert process.returncode == 0, err
     assert 'replayed' in out
-    # --delay 4 leaves time for discovery (FastDDS: 1-2 s): nearly everything arrives.
-    assert len(received) > 0.95 * len(recorded)
-    for stamp, velocity in received.items():
+    stamps, ordered = [stamp for stamp, _ in received], sorted(recorded)
+    assert len(stamps) > 0.5 * len(recorded)
+    first = ordered.index(stamps[0])
+    assert stamps == ordered[first:first + len(stamps)]       # in order, none lost between
+    for stamp, velocity in received:
         assert velocity == recorded[stamp]
-    stamps = sorted(received)
-    assert stamps == sorted(stamps)
 
 
 def test_view_writes_an_rrd_with_the_twin_entities(twin_log, tmp_path, ros):
     out = tmp_path / 'run.rrd'
     result = subprocess.run([sys.executable, '-m', 'drill_twin.cli.main', 'view', str(twin_log),
                              '--rrd', str(out)], capture_output=True, text=True, cwd=REPO,
-                            timeout=300, env=dict(os.environ))
+                            timeout=WAIT_S, env=dict(os.environ))
     assert result.returncode == 0, result.stderr
     assert out.stat().st_size > 0
     rerun = os.path.join(os.path.dirname(sys.executable), 'rerun')

@@ -24,7 +24,8 @@ from drill_twin import interface as itf
 from drill_twin.recording import reader
 from drill_twin.ros.parameters import BY_NAME
 
-WAIT_S = 120.0
+WAIT_S = 300.0
+"""Deadline of a wait (s): a run on a loaded 2-core machine may compile the kernels first."""
 STATE_PERIOD_NS = round(1e9 / BY_NAME['log_state_rate_hz'].default)
 """The log's every-tick states are the first tick of each period of this length."""
 DRILL_TWIN = str(Path(sys.executable).with_name('drill-twin'))
@@ -222,7 +223,7 @@ def test_signal_completes_the_log(env, tmp_path, signal_number, to_group):
         else:
             process.send_signal(signal_number)
         status = process.wait(timeout=WAIT_S)
-        deadline = time.monotonic() + 5.0
+        deadline = time.monotonic() + 60.0
         while _group_alive(process.pid):
             assert time.monotonic() < deadline, 'a process of the twin outlived it'
             time.sleep(0.05)

@@ -1,10 +1,13 @@
 """The twin node over real rclpy and FastDDS: the node and a probe node on one executor.
 
-Every test runs the node in fast mode (twin clock from 0, 10 ms a tick, /clock published)
-with a small ensemble. The probe subscribes with deep reliable queues and waits until every
-subscription is matched before the executor first spins, so it hears every tick from the
-first one. Waits are loops on conditions with generous deadlines, never fixed sleeps, and
-nothing asserts on wall-clock speed.
+Every test but the pacing one runs the node in fast mode (twin clock from 0, 10 ms a tick,
+/clock published) with a small ensemble. The probe subscribes with deep reliable queues and
+waits until every subscription is matched before the executor first spins, so it hears every
+tick from the first one. Commands whose effect is checked at a twin time are sent while the
+twin's clock stands still (:meth:`Twin.send_while_still`), so they act from the time they
+were sent at however long a busy machine takes to deliver them. Waits are loops on conditions
+with generous deadlines, never fixed sleeps; assertions are on the twin's own clock and
+counters, never on wall-clock speed (the suite passes at a load average of 6 on 2 cores).
 """
 from __future__ import annotations
 
@@ -25,7 +28,7 @@ from drill_twin.ros.messages import every_tick_topic
 
 STATIONS = ('x700m', 'x1590m')
 TICK_NS = 10_000_000                  # 100 Hz, one step of 10 ms
-WAIT_S = 120.0                        # deadline of any wait (a loaded 2-core machine is slow)
+WAIT_S = 300.0                        # deadline of any wait (a loaded 2-core machine is slow)
 DOMAIN_ID = session_domain_id('nodes')
 
 
@@ -141,6 +144,25 @@ class Twin:
 
         self.commands[topic].publish(Float64(data=float(value)))
 
+    def send_while_still(self, commands, what: str = 'the commands') -> int:
+        """Send ``commands`` ([(topic, value)]) while the twin's clock stands still.
+
+        The tick timer is stopped until the twin has taken every one (rejected ones too), so
+        they act from the twin time they were sent at. Return that time (ns).
+        """
+        engine = self.node.engine
+        expected = engine.commands_received + len(commands)
+        self.node.timer.cancel()
+        try:
+            sent_ns = self.node.clock.twin_time_ns()
+            for topic, value in commands:
+                self.command(topic, value)
+            self.spin_until(lambda: engine.commands_received == expected, what)
+            assert self.node.clock.twin_time_ns() == sent_ns
+        finally:
+            self.node.timer.reset()
+        return sent_ns
+
     # -- what the probe heard -------------------------------------------------------------
     def statuses(self, name: str | None = None):
         """Every DiagnosticStatus heard (optionally only those named ``name``)."""
@@ -204,17 +226,16 @@ HOOK_STEP_N = -10e3
 def recorded(ros, tmp_path_factory):
     """Run the twin fast for 3 s (4 members), heard by the probe and logged.
 
-    With a valid speed and hook-load command and one rejected command at about 1 s.
+    With a valid speed and hook-load command and one rejected command sent at about 1 s.
     """
     folder = tmp_path_factory.mktemp('recorded')
     twin = Twin(folder / 'logs', duration_s=DURATION_S, seed=5, health_rate_hz=5.0)
     try:
         twin.spin_to(COMMAND_AT_S)
         hook_before = twin.received[itf.TOP_STATE][-1].effort[1]
-        sent_at_ns = twin.node.clock.twin_time_ns()
-        twin.command(itf.CMD_TOP_DRIVE_SPEED, math.nan)                   # rejected
-        twin.command(itf.CMD_TOP_DRIVE_SPEED, SPEED_COMMAND)
-        twin.command(itf.CMD_HOOK_LOAD, hook_before + HOOK_STEP_N)
+        sent_at_ns = twin.send_while_still([(itf.CMD_TOP_DRIVE_SPEED, math.nan),   # rejected
+                                            (itf.CMD_TOP_DRIVE_SPEED, SPEED_COMMAND),
+                                            (itf.CMD_HOOK_LOAD, hook_before + HOOK_STEP_N)])
         twin.spin_until(lambda: twin.node.done.done(), 'duration_s')
         final_ns = twin.node.clock.twin_time_ns()
         # Drain what the last tick published (rosout's stop line included).
@@ -235,22 +256,23 @@ def recorded(ros, tmp_path_factory):
 def test_commands_move_the_bit(twin_factory):
     """A top-drive speed of 10 rad/s and a hook load 30 kN lower, sent at about 0.2 s.
 
-    The top drive ramps at 2 rad/s^2 to 10 rad/s, the bit follows (its mean speed doubles), and
-    the mean WOB becomes more compressive by about the hook-load change.
+    The top drive ramps from the first tick after them at 2 rad/s^2 to 10 rad/s, the bit
+    follows (its mean speed doubles), and the mean WOB becomes more compressive by about the
+    hook-load change.
     """
     twin = twin_factory()
     twin.spin_to(0.2)
     speed_0 = twin.received[itf.TOP_STATE][-1].velocity[0]
     hook_0 = twin.received[itf.TOP_STATE][-1].effort[1]
-    twin.command(itf.CMD_TOP_DRIVE_SPEED, 10.0)
-    twin.command(itf.CMD_HOOK_LOAD, hook_0 - 30e3)
+    sent_s = 1e-9 * twin.send_while_still([(itf.CMD_TOP_DRIVE_SPEED, 10.0),
+                                           (itf.CMD_HOOK_LOAD, hook_0 - 30e3)])
     twin.spin_to(6.0)
 
     t, top = twin.series(itf.TOP_STATE, 'velocity', 0)
     _, hook = twin.series(itf.TOP_STATE, 'effort', 1)
     assert np.all(np.diff(t) > 0)
     start = np.flatnonzero(top > speed_0 + 1e-9)[0]          # first tick of the ramp
-    assert t[start] < 1.5, 'the speed command took too long to arrive'
+    assert t[start] == pytest.approx(sent_s + TICK_NS * 1e-9, abs=1e-9)
     assert np.all(top[:start] == speed_0)
     ramping = (top > speed_0 + 1e-9) & (top < 10.0 - 1e-9)
     slopes = np.diff(top)[ramping[1:] & ramping[:-1]] / np.diff(t)[ramping[1:] & ramping[:-1]]
@@ -281,21 +303,25 @@ def _finite(values) -> bool:
 
 
 def test_the_twin_catches_up_with_the_wall_clock_after_a_stall(twin_factory):
-    """Real-time pacing.
+    """Real-time pacing, on the twin's own clock and counters.
 
-    A tick held up for 0.3 s (a stall of the machine) makes the ROS timer skip the periods it
-    missed; the next ticks take one extra step each until the twin's clock is back with the ROS
-    clock, and the health status says it fell behind.
+    A tick held up for 0.3 s (a stall of the machine) makes the ROS timer skip the 30 periods
+    it missed; the next ticks take at most one extra step each (never more than the clock has
+    reached) until the twin's clock is back with the ROS clock, and the health status says it
+    fell behind. The probe hears /diagnostics only: a busy machine slows the ticks, not the
+    probe's reading of forty topics.
     """
     from diagnostic_msgs.msg import DiagnosticStatus
 
-    twin = twin_factory(fast=False, ensemble_members=0, health_rate_hz=10.0, time_step_s=0.01)
+    twin = twin_factory(fast=False, ensemble_members=0, health_rate_hz=10.0, time_step_s=0.01,
+                        log_enabled=False, topics=(itf.DIAGNOSTICS,))
     node = twin.node
     twin.spin_until(lambda: node.engine.time_s > 0.5 and node.clock.steps_behind() <= 1,
                     'the twin in step with the wall clock')
-    advance, steps = node.engine.advance, []
+    advance, steps, behind = node.engine.advance, [], []
 
     def stalled_once(count):
+        behind.append(node.clock.steps_behind())        # what the clock had reached
         if not steps:
             time.sleep(0.3)
         steps.append(count)
@@ -304,14 +330,20 @@ def test_the_twin_catches_up_with_the_wall_clock_after_a_stall(twin_factory):
     node.engine.advance = stalled_once
     twin.spin_until(lambda: len(steps) > 1 and node.clock.steps_behind() <= 1,
                     'the twin caught up')
-    assert steps[0] in (1, 2) and set(steps) <= {1, 2}     # 2: a tick already late
-    # The ~30 steps missed, one a tick; a tick that is itself late on a loaded machine adds
-    # its lag, caught up the same way (56 and 71 seen in full-suite runs): bounded, not exact.
-    assert 20 <= steps.count(2) <= 100
-    lagging = [s for s in twin.statuses('drill_twin: twin health')
-               if int({kv.key: kv.value for kv in s.values}['behind_wall_clock_ms']) > 100]
-    assert lagging and all(s.level == DiagnosticStatus.WARN for s in lagging)
-    assert all(s.message.startswith('falling behind real time') for s in lagging)
+    node.engine.advance = advance
+    assert set(steps) <= {1, 2}                         # a tick's step, and one to catch up
+    assert all(count <= ahead for count, ahead in zip(steps, behind))   # never past the clock
+    assert behind[1] >= 29                              # the stall: 30 steps of 10 ms
+    # Every missed step made up: the 30 of the stall, and any a busy machine adds by ticking
+    # late (the ROS timer skips the periods it misses); the timer's own ticks take the rest.
+    assert steps.count(2) >= behind[1] - 4
+
+    def lagging():
+        return [s for s in twin.statuses('drill_twin: twin health')
+                if int({kv.key: kv.value for kv in s.values}['behind_wall_clock_ms']) > 100]
+    twin.spin_until(lagging, 'a health report of the lag')     # one came while catching up
+    assert all(s.level == DiagnosticStatus.WARN for s in lagging())
+    assert all(s.message.startswith('falling behind real time') for s in lagging())
 
 
 def test_joint_states_are_well_formed(recorded):
@@ -496,9 +528,8 @@ def test_bad_commands_are_rejected(twin_factory):
     twin = twin_factory()
     twin.spin_to(0.1)
     hook = twin.received[itf.TOP_STATE][-1].effort[1] - 10e3
-    twin.command(itf.CMD_TOP_DRIVE_SPEED, 6.0)
-    twin.command(itf.CMD_HOOK_LOAD, hook)
-    twin.spin_until(lambda: twin.node.engine.hook_load_command == hook, 'the valid commands')
+    sent_s = 1e-9 * twin.send_while_still([(itf.CMD_TOP_DRIVE_SPEED, 6.0),
+                                           (itf.CMD_HOOK_LOAD, hook)])
     for k, (topic, value, what, reason) in enumerate(BAD_COMMANDS, start=1):
         twin.command(topic, value)
         twin.spin_until(lambda: len(twin.statuses('drill_twin: command rejected')) >= k
@@ -514,14 +545,14 @@ def test_bad_commands_are_rejected(twin_factory):
         assert line.startswith(f'{topic}: {what} command') and reason in line
         assert 'the previous command stays' in line
     # Still running, still on the last valid commands.
-    rejected_at = twin.last_stamp_s()
-    twin.spin_to(rejected_at + 2.0)
+    twin.spin_to(twin.last_stamp_s() + 2.0)
     assert twin.node.engine.top_drive_speed_command == 6.0
     assert twin.node.engine.hook_load_command == hook
     t, top = twin.series(itf.TOP_STATE, 'velocity', 0)
-    assert np.all(top[t > rejected_at + 1.0] == pytest.approx(6.0, abs=1e-12))
+    ramp_s = (6.0 - top[0]) / 2.0                             # at 2 rad/s^2
+    assert np.all(top[t > sent_s + ramp_s + 0.01] == pytest.approx(6.0, abs=1e-12))
     _, hooks = twin.series(itf.TOP_STATE, 'effort', 1)
-    assert np.all(hooks[t > rejected_at] == hook)
+    assert np.all(hooks[t > sent_s] == hook)
     _, bit_speed = twin.series(itf.BIT_STATE, 'velocity', 1)
     assert _finite(bit_speed)
     # Health reports on the wall clock (health_rate_hz): wait for one counting every rejection
@@ -558,6 +589,7 @@ def test_safe_parameters_change_and_take_effect(twin_factory):
                               ensemble_rate_hz=20.0, top_drive_controller='impedance')
     assert results == [(True, '')] * 4
     node = twin.node
+    changed_s = node.clock.twin_time_ns() * 1e-9
     assert node.engine.top_drive_controller == 'impedance'
     assert _set_parameters(twin, top_drive_controller='bogus')[0][0] is False
     assert node.get_parameter('kpi_window_s').value == 2.0
@@ -575,7 +607,7 @@ def test_safe_parameters_change_and_take_effect(twin_factory):
     window = node.engine.kpi_window_samples()
     assert window[-1, 0] - window[0, 0] <= 2.0 + 1e-9
     stamps = [stamp_ns(m) * 1e-9 for m in twin.received[itf.ENSEMBLE_MEAN]]
-    late = np.diff([s for s in stamps if s > since + 0.1])
+    late = np.diff([s for s in stamps if s > changed_s + 0.1])
     np.testing.assert_allclose(late, 0.05, atol=1e-9)
 
 
@@ -694,8 +726,7 @@ def test_log_is_complete_and_equal_to_what_was_heard(recorded):
     (speed_at, speed), = logged[itf.CMD_TOP_DRIVE_SPEED]
     (hook_at, hook), = logged[itf.CMD_HOOK_LOAD]
     assert speed.data == SPEED_COMMAND and hook.data == recorded['hook_before'] + HOOK_STEP_N
-    sent = recorded['sent_at_ns']
-    assert sent <= speed_at < sent + 10 ** 9 and sent <= hook_at < sent + 10 ** 9
+    assert speed_at == hook_at == recorded['sent_at_ns']      # sent while the twin stood
     top = {stamp_ns(m): m for m in received[itf.TOP_STATE]}
     v0 = top[TICK_NS].velocity[0]
     assert top[speed_at].velocity[0] == v0
