@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from test_excitation import _config
+from imbalanced_string import imbalanced_string as _config
 
 from drill_twin.analysis.power_balance import TERMS, LateralEnergyBalance
 from drill_twin.integrator.simulator import Simulator

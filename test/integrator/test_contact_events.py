@@ -12,7 +12,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from test_excitation import _config
+from imbalanced_string import imbalanced_string as _config
 
 from drill_twin.model.contact import contact_force
 from drill_twin.integrator.contact_events import (ContactEpisodes, LiftOffEpisodes,

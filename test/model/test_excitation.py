@@ -1,5 +1,5 @@
 """
-The mass imbalance of the BHA (issue 12, section 2) against Lagrange and the closed form.
+The mass imbalance of the BHA against Lagrange and the closed form.
 
 The imbalance is checked against Lagrange's equations and the closed-form steady forced whirl
 of the linearised, prestressed string.
@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from conftest import config_with, default_raw
+from imbalanced_string import ECCENTRICITY_M, imbalanced_string as _config, MASS_KG, POSITION_M
 
 from drill_twin.config import ConfigError
 from drill_twin.model.excitation import ImbalanceForce
@@ -27,30 +28,6 @@ from drill_twin.analysis.harmonic import forced_whirl
 from drill_twin.modal.reduced_basis import modal_analysis
 
 STEP = 1e-30
-PIPE, COLLAR = 8, 4                      # a coarse mesh: every lateral mode in the basis
-POSITION_M, MASS_KG, ECCENTRICITY_M = 1500.0, 500.0, 0.01
-
-
-def _config(spin_rad_per_s=5.2, alpha=0.5, time_step_s=0.01, **physics):
-    """
-    Return the paper's string on a coarse mesh with an imbalance in the BHA.
-
-    It spins freely at the bit (no bit-rock law, no wall); f_se and f_ke off (the closed form
-    is linear).
-    """
-    switches = dict(default_raw()['physics'], bit_rock=False, contact=False,
-                    finite_strain=False, kinetic_coupling=False)
-    switches.update(physics)
-    sections = [dict(s, elements=n) for s, n in zip(default_raw()['sections'], (PIPE, COLLAR))]
-    return config_with({
-        'physics': switches, 'sections': sections,
-        'reduced_basis': {'lateral_modes': 4 * (PIPE + COLLAR + 1) - 8},
-        'operation': {'top_drive_speed_hz': spin_rad_per_s / (2 * np.pi)},
-        'damping': {'mass_coefficient_per_s': alpha},
-        'integration': {'time_step_s': time_step_s},
-        'initial_conditions': {'lateral_deflection_m': 0.0},
-        'excitation': {'imbalance': {'enabled': True, 'position_m': POSITION_M,
-                                     'mass_kg': MASS_KG, 'eccentricity_m': ECCENTRICITY_M}}})
 
 
 def test_imbalance_is_off_by_default_and_validated(default_config):
