@@ -3,7 +3,8 @@ The checks of the configuration's dataclasses and the error they raise.
 
 Each dataclass checks its own values in ``__post_init__`` with these helpers; an error names
 the field relative to the object that raised it, and the loader (``loader.py``) prefixes the
-key path of that object.
+key path of that object. The error survives pickling (a map point's check fails in a worker
+process and is reported by the parent).
 """
 from __future__ import annotations
 
@@ -22,6 +23,9 @@ class ConfigValueError(ValueError):
         super().__init__(f'{key}: {message}')
         self.key = key
         self.message = message
+
+    def __reduce__(self):
+        return type(self), (self.key, self.message)
 
 
 def positive(obj, *names: str) -> None:

@@ -8,7 +8,13 @@ from typing import Literal
 from drill_twin.config.bounds import (
     ITERATIONS_MAX, ITERATIONS_REASON, TIME_STEP_MAX_S, TIME_STEP_REASON, TOLERANCE_MAX,
     TOLERANCE_REASON)
-from drill_twin.config.checks import at_most, ConfigValueError, non_negative, positive
+from drill_twin.config.checks import at_least, at_most, ConfigValueError, non_negative, positive
+
+TIME_STEP_MIN_S = 1.0e-5
+TIME_STEP_MIN_REASON = ('a step takes about 0.2 ms of computing: a finer one needs more than '
+                        '20 s per simulated second, the pre-flight\'s 0.25 s alone 25 000 '
+                        'steps; the paper uses 5 ms')
+"""The smallest time step a configuration may ask for (s)."""
 
 InitialShape = Literal['first_lateral_mode', 'half_sine', 'bha_half_sine']
 
@@ -38,6 +44,7 @@ class Integration:
             raise ConfigValueError('contact_substeps',
                                    f'must be 1, 2, 4, 8 or 16, got {self.contact_substeps}')
         at_most(self, 'time_step_s', TIME_STEP_MAX_S, TIME_STEP_REASON)
+        at_least(self, 'time_step_s', TIME_STEP_MIN_S, TIME_STEP_MIN_REASON)
         at_most(self, 'tolerance', TOLERANCE_MAX, TOLERANCE_REASON)
         at_most(self, 'max_iterations', ITERATIONS_MAX, ITERATIONS_REASON)
 

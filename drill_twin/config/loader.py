@@ -28,7 +28,11 @@ from drill_twin.config.schema import ConfigValueError, DrillStringConfig
 
 
 class ConfigError(Exception):
-    """A configuration that cannot be used; ``str()`` is a one-line message."""
+    """
+    A configuration that cannot be used; ``str()`` is a one-line message.
+
+    It survives pickling (raised in a worker process, reported by the parent).
+    """
 
     def __init__(self, source: str, key: str, message: str):
         where = f'{source}: {key}' if key else source
@@ -36,6 +40,9 @@ class ConfigError(Exception):
         self.source = source
         self.key = key
         self.message = message
+
+    def __reduce__(self):
+        return type(self), (self.source, self.key, self.message)
 
 
 def load_config(path: str | Path | None = None,

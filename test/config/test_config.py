@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+import pickle
 import subprocess
 import sys
 
@@ -9,6 +10,7 @@ import pytest
 from conftest import REPO, config_with, default_raw
 
 from drill_twin.config import ConfigError, load_config
+from drill_twin.config.checks import ConfigValueError
 from drill_twin.config.loader import config_to_dict
 
 
@@ -128,6 +130,10 @@ def test_round_trip_through_a_plain_mapping(default_config):
     ({'operation': {'top_drive_speed_hz': -83.0}}, 'operation.top_drive_speed_hz',
      'at least -10'),
     ({'integration': {'time_step_s': 1.0}}, 'integration.time_step_s', 'at most 0.1'),
+    # A step no run finishes with (the pre-flight alone would take 2.5e8 steps at 1e-9 s).
+    ({'integration': {'time_step_s': 1e-9}}, 'integration.time_step_s',
+     'at least 1e-05 (a step takes about 0.2 ms of computing'),
+    ({'integration': {'time_step_s': 9.99e-6}}, 'integration.time_step_s', 'got 9.99e-06'),
     ({'initial_conditions': {'lateral_deflection_m': 0.5}},
      'initial_conditions.lateral_deflection_m', 'does not fit in the hole'),
 ])
@@ -138,6 +144,19 @@ def test_impossible_or_malformed_values_are_refused(changes, key, words):
     assert '\n' not in message
     assert f': {key}: ' in message
     assert words in message
+
+
+def test_the_smallest_time_step_is_accepted():
+    assert config_with({'integration': {'time_step_s': 1e-5}}).integration.time_step_s == 1e-5
+
+
+@pytest.mark.parametrize('error', [ConfigValueError('operation.hook_load_n', 'must be >= 0'),
+                                   ConfigError('--set', 'operation.hook_load_n', 'must be >= 0')])
+def test_configuration_errors_survive_pickling(error):
+    """A map point's error crosses from its worker process intact (not a broken pool)."""
+    again = pickle.loads(pickle.dumps(error))
+    assert type(again) is type(error) and str(again) == str(error)
+    assert (again.key, again.message) == ('operation.hook_load_n', 'must be >= 0')
 
 
 def test_missing_key_in_a_replacing_list():
