@@ -4,7 +4,9 @@ Read a twin log back: messages deserialized with rclpy, topics and metadata reco
 A log is a rosbag2 bag directory (``metadata.yaml`` and MCAP splits, see
 :mod:`drill_twin.recording.bag`) or a single MCAP file. A bag is read split after split:
 those ``metadata.yaml`` lists, then any unlisted split (the one being written, or cut by a
-crash). Each file is read front to back with mcap's streaming reader (no index needed), so a
+crash). Every file must start with the MCAP magic (:class:`NotMcapError` otherwise), but
+an unlisted split without it (opened, then cut before its first bytes) holds nothing and is
+left out. Each file is read front to back with mcap's streaming reader (no index needed), so a
 file cut short yields every message of its complete chunks and stops quietly at the first
 record it cannot read (pass ``strict=True`` to get :class:`TruncatedLogError` instead).
 Chunk CRCs are checked, so a half-written chunk is never decoded.
@@ -42,6 +44,27 @@ _DAMAGE = (McapError, ValueError, struct.error, EOFError, ZstdError, RuntimeErro
 
 class TruncatedLogError(McapError):
     """The log ends (or is damaged) before its footer; raised only with ``strict=True``."""
+
+
+class NotMcapError(ValueError):
+    """A file given as a log that does not start with the MCAP magic (one line)."""
+
+
+def require_mcap(path: str | os.PathLike) -> None:
+    """Raise :class:`NotMcapError` unless the file ``path`` starts with the MCAP magic."""
+    with open(path, 'rb') as stream:
+        start = stream.read(len(MCAP0_MAGIC))
+    if start != MCAP0_MAGIC:
+        raise NotMcapError(f'{path}: not an MCAP file ('
+                           + ('empty' if not start else 'no MCAP magic at its start') + ')')
+
+
+def _is_mcap(path: Path) -> bool:
+    try:
+        require_mcap(path)
+    except NotMcapError:
+        return False
+    return True
 
 
 class LogMessage(NamedTuple):
@@ -83,18 +106,24 @@ def log_files(path: str | os.PathLike) -> list[Path]:
     List the MCAP files of a log (a bag directory or one file) in recording order.
 
     Raises FileNotFoundError (one line) if ``path`` does not exist, is a directory without
-    MCAP files, or a split its ``metadata.yaml`` lists is missing; ValueError if that
-    ``metadata.yaml`` is unreadable.
+    MCAP files, or a split its ``metadata.yaml`` lists is missing; :class:`NotMcapError` (a
+    ValueError) if ``path`` or a listed split is not an MCAP file; ValueError if that
+    ``metadata.yaml`` is unreadable. An unlisted split that is not MCAP is left out.
     """
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f'{path}: no such file')
     files = split_files(path)
-    if not files:
-        raise FileNotFoundError(f'{path}: no MCAP files in it (not a log)')
     for file in files:
         if not file.is_file():
             raise FileNotFoundError(f'{file}: listed in {METADATA_FILE} but missing')
+    if path.is_dir():
+        listed = set(listed_splits(path))
+        files = [file for file in files if file in listed or _is_mcap(file)]
+    if not files:
+        raise FileNotFoundError(f'{path}: no MCAP files in it (not a log)')
+    for file in files:
+        require_mcap(file)
     return files
 
 

@@ -10,15 +10,11 @@ from __future__ import annotations
 import os
 
 from mcap.records import Channel, Header, Message, Metadata, Schema
-from mcap.writer import CompressionType, MCAP0_MAGIC, Writer
+from mcap.writer import CompressionType, Writer
 
 from drill_twin.recording.mcap_log import (DEFAULT_CHUNK_SIZE, library_string, PROFILE,
                                            use_zstd_level)
-from drill_twin.recording.reader import iter_records
-
-
-class NotMcapError(ValueError):
-    """The file to recover does not start with the MCAP magic (one line)."""
+from drill_twin.recording.reader import iter_records, require_mcap
 
 
 def recover_log(source: str | os.PathLike, destination: str | os.PathLike) -> int:
@@ -27,14 +23,13 @@ def recover_log(source: str | os.PathLike, destination: str | os.PathLike) -> in
 
     Schemas, channels (with their metadata), messages (times unchanged) and metadata
     records are kept; the header's profile is kept; chunks are zstd-compressed.  Returns
-    the number of messages copied.  Raises :class:`NotMcapError` if ``source`` is not an
-    MCAP file (nothing is written then).
+    the number of messages copied.  Raises
+    :class:`~drill_twin.recording.reader.NotMcapError` if ``source`` is not an MCAP file
+    (nothing is written then).
     """
     if os.path.realpath(source) == os.path.realpath(destination):
         raise ValueError('recover_log needs a destination different from the source')
-    with open(source, 'rb') as stream:
-        if stream.read(len(MCAP0_MAGIC)) != MCAP0_MAGIC:
-            raise NotMcapError(f'{source}: not an MCAP file (no MCAP magic at its start)')
+    require_mcap(source)
     schema_ids: dict[int, int] = {}
     channel_ids: dict[int, int] = {}
     schemas: dict[int, Schema] = {}

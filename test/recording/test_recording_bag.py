@@ -8,6 +8,7 @@ recover``; the run description as one dataclass.
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -138,6 +139,30 @@ def test_own_reader_reads_the_bag_in_order(bag):
     assert got[-1].message == expected[-1].message
     assert set(reader.topics(path)) == set(twin_topics(STATIONS_M))
     assert TwinLogMetadata.from_record(reader.read_metadata(path)[RECORD_NAME]) == METADATA
+
+
+def test_a_split_that_is_not_mcap_is_refused_unless_it_is_an_unlisted_one(bag, tmp_path):
+    """
+    Every file of a log starts with the MCAP magic, else the log is refused (NotMcapError).
+
+    Only an unlisted split (the one being written when the twin died) without the magic is left
+    out: it holds nothing.
+    """
+    path, expected = bag
+    copy = tmp_path / 'bag'
+    shutil.copytree(path, copy)
+    listed = split_files(copy)
+    empty = copy / (copy.name + '_9.mcap')
+    empty.write_bytes(b'')
+    assert reader.log_files(copy) == listed
+    assert len(list(reader.iter_raw(copy))) == len(expected)
+    listed[1].write_bytes(b'')                                    # a listed split emptied
+    with pytest.raises(reader.NotMcapError, match=f'{listed[1]}: not an MCAP file .empty.'):
+        reader.log_files(copy)
+    text = tmp_path / 'notes.mcap'
+    text.write_text('not a log\n')
+    with pytest.raises(reader.NotMcapError, match='no MCAP magic at its start'):
+        reader.log_files(text)
 
 
 KILLED_BAG_WRITER = """
