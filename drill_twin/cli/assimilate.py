@@ -15,6 +15,8 @@ from pathlib import Path
 from drill_twin import interface as itf
 from drill_twin.assimilation.settings import SENSOR_OF
 from drill_twin.cli.common import UsageError, add_config_arguments, blamed, preflight_or_refuse
+from drill_twin.cli.log_path import existing_log
+from drill_twin.cli.output_paths import distinct, output_file
 from drill_twin.cli.progress import ProgressBar
 from drill_twin.cli.rig import add_assimilation_argument, split_settings
 
@@ -50,8 +52,10 @@ def add_parser(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    if Path(args.out).suffix != '.mcap':
-        raise UsageError(f'--out: {args.out}: use a .mcap file name')
+    existing_log(args.log)
+    output_file('--out', args.out, ('.mcap',))
+    output_file('--summary', args.summary)
+    distinct({'LOG': args.log, '--out': args.out, '--summary': args.summary})
     if not (math.isfinite(args.settle) and args.settle >= 0):
         raise UsageError(f'--settle: must be >= 0 (seconds), got {args.settle}')
     extra = []

@@ -3,18 +3,31 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 from pathlib import Path
 
 import numpy as np
 
-from drill_twin.cli.common import UsageError, add_config_arguments, config_from_args
+from drill_twin.cli.common import (UsageError, add_config_arguments, build_model_or_refuse,
+                                   config_from_args, positive_seconds, require_memory)
+from drill_twin.cli.output_paths import output_directory
 from drill_twin.cli.progress import ProgressBar
+from drill_twin.config.checks import ConfigValueError
 
 SPEC_OPTIONS = {'speeds_rad_per_s': '--speeds', 'weights_on_bit_n': '--weights-on-bit',
                 'duration': '--duration', 'window': '--window', 'perturbation': '--perturbation',
                 'start': '--start', 'seed': '--seed'}
 """MapSpec's field names -> the options that set them (for one-line errors)."""
 DEFAULT_WINDOW_S = 20.0
+VALUE_BYTES = 128
+"""Memory of one value of a list or range while it is parsed: numpy's, Python's float, the
+list's and the duplicate check's entries."""
+POINT_BYTES = 4096
+"""Memory of one grid point in this process while the map runs: the executor's pending task
+(about 2 kB) and the point's row of results (about 1.4 kB), as measured, rounded up."""
+SERIES_COUNT = 4
+"""Series a running point keeps over the window, one float each per step (bit speed, hole
+depth, WOB, TOB)."""
 VALUES_HELP = ('a comma-separated list of values and ranges START:STOP:COUNT (COUNT evenly '
                'spaced values, both ends included), e.g. 2:20:10 or 5,10,15 or 2:8:4,12,20')
 
@@ -32,6 +45,7 @@ def parse_values(option: str, text: str) -> tuple[float, ...]:
                 start, stop, count = float(parts[0]), float(parts[1]), int(parts[2])
                 if count < 2:
                     raise UsageError(f'{option}: {item!r}: a range needs COUNT >= 2')
+                require_memory(option, f'{item!r}: {count} values', count * VALUE_BYTES)
                 values.extend(np.linspace(start, stop, count).tolist())
             else:
                 raise ValueError
@@ -85,11 +99,16 @@ def add_parser(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     speeds = parse_values('--speeds', args.speeds)
     weights = parse_values('--weights-on-bit', args.weights_on_bit)
+    positive_seconds('--duration', args.duration)
     if args.workers is not None and args.workers < 1:
         raise UsageError(f'--workers: must be at least 1, got {args.workers}')
+    output_directory('--out', args.out)
+    points = len(speeds) * len(weights)
+    require_memory('--speeds, --weights-on-bit', f'a grid of {len(speeds)} x {len(weights)} '
+                   f'= {points:.4g} points', points * POINT_BYTES)
     config = config_from_args(args)
     window = args.window if args.window is not None else min(DEFAULT_WINDOW_S, args.duration)
-    from drill_twin.simulation.stick_slip_map import MapSpec, run_map
+    from drill_twin.simulation.stick_slip_map import MapPointError, check_points, MapSpec, run_map
     from drill_twin.simulation.stick_slip_map_io import write_map
     from drill_twin.viz.map_figure import plot_map
     from drill_twin.uncertainty.executors import make_executor
@@ -100,11 +119,18 @@ def run(args: argparse.Namespace) -> int:
                        perturbation_rad_per_s=args.perturbation, start=args.start,
                        seed=args.seed)
     except ValueError as error:
-        key, _, rest = str(error).partition(':')
-        raise UsageError(f'{SPEC_OPTIONS.get(key, key)}:{rest}') from None
+        raise _spec_error(error) from None
+    _require_series_memory(config, spec, args.workers)
+    build_model_or_refuse(config, args.overrides)
+    try:
+        check_points(config, spec)
+    except MapPointError as error:
+        raise _spec_error(error) from None
     executor = make_executor(args.workers, args.dask)
     try:
         result = run_map(config, spec, executor, progress=ProgressBar('map'))
+    except ConfigValueError as error:       # a point's own check, from a worker: one line
+        raise UsageError(f'a point of the map: {error}') from None
     finally:
         executor.close()
     write_map(result, args.out)
@@ -112,6 +138,21 @@ def run(args: argparse.Namespace) -> int:
         plot_map(result, Path(args.out) / 'map.png')
     print(_text(result, args.out))
     return 0
+
+
+def _spec_error(error: ValueError) -> UsageError:
+    """Return a MapSpec's error ('field: problem') as one line naming the option."""
+    key, _, rest = str(error).partition(':')
+    return UsageError(f'{SPEC_OPTIONS.get(key, key)}:{rest}')
+
+
+def _require_series_memory(config, spec, workers: int | None) -> None:
+    """Refuse a window whose series the running points cannot hold (UsageError)."""
+    steps = spec.window_s / config.integration.time_step_s + 1
+    running = min(workers or os.cpu_count() or 1, spec.shape[0] * spec.shape[1])
+    require_memory('--window', f'{spec.window_s:g} s at {config.integration.time_step_s:g} s '
+                   f'per step in {running} running point(s)',
+                   8.0 * SERIES_COUNT * steps * running)
 
 
 def _text(result, out) -> str:

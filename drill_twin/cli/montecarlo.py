@@ -9,6 +9,7 @@ from pathlib import Path
 from drill_twin.cli.common import (UsageError, add_config_arguments, blamed, config_from_args,
                                    positive_seconds, positive_window, preflight_or_refuse,
                                    require_memory)
+from drill_twin.cli.output_paths import output_directory
 from drill_twin.cli.progress import ProgressBar
 
 WORKERS_PER_CORE_MAX = 4
@@ -75,6 +76,7 @@ def run(args: argparse.Namespace) -> int:
     if args.workers is not None and not 1 <= args.workers <= workers_max():
         raise UsageError(f'--workers: must lie in 1 ... {workers_max()} (four per core of this '
                          f'machine: more only compete for the cores), got {args.workers}')
+    output_directory('--out', args.out)
     window = min(args.window, args.duration)
     config = config_from_args(args)
     from drill_twin.integrator.simulator import SimulationDiverged

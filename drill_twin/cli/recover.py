@@ -5,6 +5,7 @@ import argparse
 from pathlib import Path
 
 from drill_twin.cli.common import UsageError
+from drill_twin.cli.output_paths import output_file
 
 
 def add_parser(subparsers) -> None:
@@ -21,21 +22,22 @@ def add_parser(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    source, destination = Path(args.log), Path(args.out)
+    source = Path(args.log)
     if not source.is_file():
         raise UsageError(f'{source}: no such file' if not source.exists()
                          else f'{source}: not a file (recover one split of a bag)')
+    destination = Path(args.out)
     if destination.exists() and destination.resolve() == source.resolve():
         raise UsageError(f'--out: {destination} is the input file; write elsewhere')
-    if not destination.parent.is_dir():
-        raise UsageError(f'--out: {destination.parent}: no such directory')
-    from drill_twin.recording.reader import is_complete
-    from drill_twin.recording.recovery import NotMcapError, recover_log
+    output_file('--out', args.out)
+    from drill_twin.recording.reader import is_complete, NotMcapError, require_mcap
+    from drill_twin.recording.recovery import recover_log
 
     try:
-        count = recover_log(source, destination)
+        require_mcap(source)
     except NotMcapError as error:
         raise UsageError(str(error)) from None
+    count = recover_log(source, destination)
     state = 'complete already' if is_complete(source) else 'cut short'
     print(f'recovered {count} messages from {source} ({state}) into {destination}')
     return 0

@@ -8,15 +8,29 @@ from __future__ import annotations
 
 import argparse
 import json
-from pathlib import Path
 
-from drill_twin.assimilation.settings import load_assimilation, model_overrides
+from drill_twin.assimilation.settings import load_assimilation, model_overrides, SENSOR_OF
 from drill_twin.cli.common import (UsageError, add_config_arguments, blamed,
-                                   positive_seconds, preflight_or_refuse)
+                                   positive_seconds, preflight_or_refuse, require_memory)
+from drill_twin.cli.output_paths import output_file
 from drill_twin.cli.progress import ProgressBar
 from drill_twin.config import load_config
 from drill_twin.config.loader import config_to_dict
 from drill_twin.uncertainty.germ import germs_for_realizations, MAX_DISPERSION
+
+
+SAMPLE_BYTES = 512
+"""Memory of one sample of the rig log (a sensor's reading or a row of the truth) while the
+truth runs and the log is written: the schedule's entry, the values as Python objects, then as
+arrays and messages (about 270 bytes measured while running, doubled)."""
+
+
+def log_size(settings, duration_s: float) -> tuple[float, float]:
+    """Return (samples, bytes) of a rig log of ``duration_s``: every sensor's and the truth's."""
+    rate_hz = settings.rig.truth_rate_hz + sum(getattr(settings.sensors, name).rate_hz
+                                               for name in set(SENSOR_OF.values()))
+    samples = duration_s * rate_hz
+    return samples, samples * SAMPLE_BYTES
 
 
 def add_parser(subparsers) -> None:
@@ -55,14 +69,15 @@ def split_settings(args):
 
 def run(args: argparse.Namespace) -> int:
     positive_seconds('--duration', args.duration)
-    if Path(args.out).suffix != '.mcap':
-        raise UsageError(f'--out: {args.out}: use a .mcap file name')
+    output_file('--out', args.out, ('.mcap',))
     if not 0.0 <= args.germ_dispersion < MAX_DISPERSION:
         raise UsageError(f'--germ-dispersion: must be in [0, {MAX_DISPERSION:.4f}), got '
                          f'{args.germ_dispersion}')
     if args.germ_seed < 0:
         raise UsageError(f'--germ-seed: must be >= 0, got {args.germ_seed}')
     config, settings = split_settings(args)
+    samples, need = log_size(settings, args.duration)
+    require_memory('--duration', f'{args.duration:g} s of rig log ({samples:.3g} samples)', need)
     from drill_twin.assimilation.rig_emulator import run_rig
     from drill_twin.cli.rig_files import write_rig_log
     from drill_twin.integrator.stepping import TwinStalled

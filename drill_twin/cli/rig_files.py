@@ -49,7 +49,7 @@ from drill_twin.cli.common import UsageError
 from drill_twin.recording import cdr
 from drill_twin.recording.mcap_log import McapLog
 from drill_twin.recording.message_types import import_message_class
-from drill_twin.recording.reader import iter_raw, read_metadata
+from drill_twin.recording.reader import iter_raw, NotMcapError, read_metadata
 
 TRUTH_BIT = itf.RIG_TRUTH_BIT_STATE
 TRUTH_HOLE = '/rig/truth/hole_depth'
@@ -189,7 +189,7 @@ def _read_records(path, sensor_of_topic: dict, channel_of_topic: dict) -> _RigRe
                 _add_record(records, topic, record, sensor_of_topic, channel_of_topic)
             except (ValueError, IndexError) as error:
                 raise UsageError(f'{path}: a message on {topic} is malformed ({error})') from None
-    except FileNotFoundError as error:
+    except (FileNotFoundError, NotMcapError) as error:
         raise UsageError(str(error)) from None
     return records
 

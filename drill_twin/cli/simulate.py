@@ -5,9 +5,10 @@ import argparse
 import json
 from pathlib import Path
 
-from drill_twin.cli.common import (UsageError, add_config_arguments, blamed, config_from_args,
+from drill_twin.cli.common import (add_config_arguments, blamed, config_from_args,
                                    positive_seconds, positive_window, preflight_or_refuse,
                                    require_memory)
+from drill_twin.cli.output_paths import distinct, output_file
 from drill_twin.cli.progress import ProgressBar
 from drill_twin.config.loader import config_to_dict
 
@@ -36,8 +37,10 @@ def add_parser(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     positive_seconds('--duration', args.duration)
     positive_window(args.window)
-    if args.out and Path(args.out).suffix not in ('.csv', '.npz'):
-        raise UsageError(f'--out: {args.out}: use a .csv or .npz file name')
+    output_file('--out', args.out, ('.csv', '.npz'))
+    output_file('--summary', args.summary)
+    output_file('--plot', args.plot, figure_suffixes() if args.plot else ())
+    distinct({'--out': args.out, '--summary': args.summary, '--plot': args.plot})
     config = config_from_args(args)
     records, need = history_size(config, args.duration)
     require_memory('--duration', f'{args.duration:g} s recorded every '
@@ -68,6 +71,14 @@ def run(args: argparse.Namespace) -> int:
         plot_run(result, args.plot, window, clearance_m=clearance)
     print(_text(summary, args.duration, window))
     return 0
+
+
+def figure_suffixes() -> tuple[str, ...]:
+    """File name suffixes matplotlib writes figures in (.png, .pdf, .svg, ...)."""
+    from matplotlib.backend_bases import FigureCanvasBase          # a second: --plot only
+
+    kinds = sorted(FigureCanvasBase.get_supported_filetypes(), key=lambda k: (k != 'png', k))
+    return tuple('.' + kind for kind in kinds)
 
 
 def history_size(config, duration_s: float, members: int = 1) -> tuple[float, float]:

@@ -7,10 +7,11 @@ from pathlib import Path
 
 from drill_twin.cli import startup_signals
 from drill_twin.cli.common import UsageError, positive_seconds, preflight_or_refuse
-from drill_twin.config import load_config
+from drill_twin.config import ConfigError, load_config
 from drill_twin.config.paths import config_directory
 from drill_twin.ros.parameters import (PARAMETERS, ParameterError, check_parameter,
-                                       model_overrides, validate_ros_arguments)
+                                       model_overrides, parameters_from_ros_arguments,
+                                       validate_ros_arguments)
 
 
 def add_parser(subparsers) -> None:
@@ -56,6 +57,9 @@ def add_parser(subparsers) -> None:
     parser.set_defaults(run=run)
 
 
+PARAMETER_OF_KEY = {'integration.time_step_s': 'time_step_s',
+                    'top_drive.controller': 'top_drive_controller'}
+"""Model configuration keys that a node parameter sets (ros.parameters.model_overrides)."""
 OPTION_PARAMETERS = {'duration': ('--duration', 'duration_s'),
                      'ensemble': ('--ensemble', 'ensemble_members'),
                      'delta': ('--delta', 'ensemble_dispersion'),
@@ -131,9 +135,29 @@ def checked_start(ros: list[str]) -> dict:
     except ParameterError as error:
         raise UsageError(str(error)) from None
     overrides = model_overrides(values)
-    config = load_config(values['model_config'] or None, overrides)
+    try:
+        config = load_config(values['model_config'] or None, overrides)
+    except ConfigError as error:
+        raise _blamed_on_parameter(error, ros, values['model_overrides']) from None
     preflight_or_refuse(config, overrides)
     return values
+
+
+def _blamed_on_parameter(error: ConfigError, ros: list[str], model_items) -> Exception:
+    """
+    Return a refused override as the node parameter that made it (UsageError), if one did.
+
+    ``time_step_s`` and ``top_drive_controller`` become overrides of the model configuration
+    (PARAMETER_OF_KEY); a refusal of one is blamed on where the parameter was given, unless a
+    ``model_overrides`` item sets the same key (``error`` is then returned as it is).
+    """
+    name = PARAMETER_OF_KEY.get(error.key)
+    own = any(item.split('=', 1)[0].strip() == error.key for item in model_items or ())
+    origins = [origin for origin, found, _ in parameters_from_ros_arguments(ros)
+               if found == name]
+    if error.source != '--set' or name is None or own or not origins:
+        return error
+    return UsageError(f'{origins[-1]}: {name}: {error.message}')
 
 
 def run(args: argparse.Namespace) -> int:

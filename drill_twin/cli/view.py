@@ -8,6 +8,7 @@ import subprocess
 import sys
 
 from drill_twin.cli.common import EXIT_USAGE, UsageError
+from drill_twin.cli.output_paths import output_file
 from drill_twin.viz.rerun_entities import TABS
 
 
@@ -49,6 +50,7 @@ def run(args: argparse.Namespace) -> int:
         files = run_columns.log_files(args.log)
     except run_columns.LogNotFound as error:
         raise UsageError(str(error)) from None
+    output_file('--rrd', args.rrd, ('.rrd',))
     if not args.rrd and not args.web and not rerun_view.has_display():
         print(f'drill-twin: view: {rerun_view.NO_DISPLAY_HINT}', file=sys.stderr)
         return EXIT_USAGE

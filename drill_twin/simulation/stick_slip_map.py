@@ -12,10 +12,13 @@ state (``start='configured'``: untwisted string, as ``drill-twin simulate``). Th
 statistics are taken over the last ``window_s`` seconds; the linear stability of the
 point's steady state is computed alongside (:mod:`drill_twin.analysis.linear_stability`).
 
-A point whose integration diverges is kept as a row of NaN statistics with ``failed = 1``
-and the error in ``error``. Points are returned in grid order (WOB-major: index =
-i_wob * n_speeds + i_speed) whatever the executor, and a point computes the same numbers
-wherever it runs, so a map is reproducible bit for bit.
+Every speed and WOB of the grid is checked against the configuration's bounds before any
+point runs (:func:`check_points`, :class:`MapPointError`); a speed of 0 is refused (the bit
+does not turn: no steady drilling to start from or to linearise). A point whose integration
+diverges is kept as a row of NaN statistics with ``failed = 1`` and the error in ``error``.
+Points are returned in grid order (WOB-major: index = i_wob * n_speeds + i_speed) whatever the
+executor, and a point computes the same numbers wherever it runs, so a map is reproducible
+bit for bit.
 """
 from __future__ import annotations
 
@@ -30,6 +33,7 @@ from typing import Callable
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from drill_twin.config.checks import ConfigValueError
 from drill_twin.config.loader import build_config, config_to_dict
 from drill_twin.config.schema import DrillStringConfig
 from drill_twin.analysis import kpi
@@ -50,6 +54,10 @@ SSI_STEADY = 0.05
 """SSI below which a simulated point counts as steady when compared with the linear
 stability (a bit-speed swing under 5 % of the mean speed each way)."""
 STARTS = ('steady', 'configured')
+ZERO_SPEED_REASON = ('at 0 the bit does not turn: the bit-rock law, f = -ROP (omega^2 + e^2) / '
+                     '(a2 omega^2), is singular there, with no steady drilling to start from '
+                     'or to linearise')
+"""Why a map has no point at zero top-drive speed."""
 BOUNDARY_RESOLUTION = (81, 61)
 """Speeds x WOBs of the fine grid on which the linear stability boundary is drawn."""
 
@@ -111,12 +119,13 @@ class MapSpec:
                 raise ValueError(f'{name}: values must be finite')
             if len(set(values)) != len(values):
                 raise ValueError(f'{name}: values must be distinct')
-        if not all(v >= 0 for v in self.speeds_rad_per_s):
-            raise ValueError('speeds_rad_per_s: must be >= 0')
+        if not all(v > 0 for v in self.speeds_rad_per_s):
+            raise ValueError(f'speeds_rad_per_s: must be > 0 ({ZERO_SPEED_REASON}), got '
+                             f'{self.speeds_rad_per_s[0]:g}')
         if not all(v > 0 for v in self.weights_on_bit_n):
             raise ValueError('weights_on_bit_n: must be > 0 (compression)')
-        if not self.duration_s > 0:
-            raise ValueError(f'duration: must be positive, got {self.duration_s}')
+        if not (math.isfinite(self.duration_s) and self.duration_s > 0):
+            raise ValueError(f'duration: must be positive and finite, got {self.duration_s}')
         if not 0 < self.window_s <= self.duration_s:
             raise ValueError(f'window: must lie in (0, duration], got {self.window_s}')
         if not (math.isfinite(self.perturbation_rad_per_s) and self.perturbation_rad_per_s >= 0):
@@ -172,6 +181,67 @@ class MapResult:
         return [row for row in self.rows if row['failed']]
 
 
+class MapPointError(ValueError):
+    """
+    A speed or WOB of the grid that the configuration refuses.
+
+    ``key``: the MapSpec field (speeds_rad_per_s or weights_on_bit_n); ``str()`` is
+    ``key: message``, one line. It survives pickling.
+    """
+
+    def __init__(self, key: str, message: str):
+        super().__init__(f'{key}: {message}')
+        self.key = key
+        self.message = message
+
+    def __reduce__(self):
+        return type(self), (self.key, self.message)
+
+
+def point_config(config: DrillStringConfig, system, speed_rad_per_s: float | None,
+                 weight_on_bit_n: float | None) -> tuple[DrillStringConfig, float | None]:
+    """
+    Return (the configuration of a grid point, its hook load H = W - WOB in N).
+
+    The configuration's operation at the point's top-drive speed and hook load (None keeps the
+    configuration's own; the hook load returned is then None); raises
+    :class:`~drill_twin.config.checks.ConfigValueError` (key ``operation.<field>``) if it
+    refuses them.
+    """
+    changes = {}
+    hook = None
+    if speed_rad_per_s is not None:
+        changes['top_drive_speed_hz'] = speed_rad_per_s / (2 * math.pi)
+    if weight_on_bit_n is not None:
+        hook = changes['hook_load_n'] = hook_load_for(system, weight_on_bit_n)
+    try:
+        operation = dataclasses.replace(config.operation, **changes)
+    except ConfigValueError as error:
+        raise ConfigValueError(f'operation.{error.key}', error.message) from None
+    return dataclasses.replace(config, operation=operation), hook
+
+
+def check_points(config: DrillStringConfig, spec: MapSpec) -> None:
+    """
+    Refuse a grid the configuration cannot run, before any point runs.
+
+    Each speed and each WOB through :func:`point_config` (the other value the configuration's
+    own); raises :class:`MapPointError` naming the first refused value.
+    """
+    _, system = _system_for(json.dumps(config_to_dict(config)))
+    for speed in spec.speeds_rad_per_s:
+        try:
+            point_config(config, system, speed, None)
+        except ConfigValueError as error:
+            raise MapPointError('speeds_rad_per_s', f'{speed:g} rad/s: {error}') from None
+    for wob in spec.weights_on_bit_n:
+        try:
+            point_config(config, system, None, wob)
+        except ConfigValueError as error:
+            raise MapPointError('weights_on_bit_n', f'{wob:g} N (hook load '
+                                f'{hook_load_for(system, wob):.4g} N): {error}') from None
+
+
 @functools.lru_cache(maxsize=4)
 def _system_for(config_json: str):
     """Return the configuration and its reduced system, built once per process."""
@@ -185,7 +255,7 @@ def run_point(config_json: str, spec: MapSpec, index: int) -> dict:
     config, system = _system_for(config_json)
     speed, wob = spec.point(index)
     law = BitRockLaw.from_config(config.bit_rock)
-    hook = hook_load_for(system, wob)
+    configured, hook = point_config(config, system, speed, wob)
     steady = under_hook_load(system, law, speed, hook)
     stability = AxialTorsionalLinearisation(system).at(steady)
     row = {name: math.nan for name in COLUMNS}
@@ -197,13 +267,10 @@ def run_point(config_json: str, spec: MapSpec, index: int) -> dict:
                frequency_hz=stability.frequency_hz,
                linearly_stable=int(stability.stable), linear_comparison='', failed=0,
                error='')
-    operation = dataclasses.replace(config.operation,
-                                    top_drive_speed_hz=speed / (2 * math.pi), hook_load_n=hook)
-    point_config = dataclasses.replace(config, operation=operation)
     start = time.perf_counter()
     with threadpool_limits(limits=1, user_api='blas'):
         try:
-            row.update(_integrate(point_config, system, spec, steady, hook, index))
+            row.update(_integrate(configured, system, spec, steady, hook, index))
         except SimulationDiverged as error:
             row.update(failed=1, failed_time_s=error.time_s, error=str(error))
     row['wall_time_s'] = time.perf_counter() - start
@@ -294,7 +361,12 @@ def oscillation_frequency(signal: np.ndarray, dt: float) -> float:
 
 def run_map(config: DrillStringConfig, spec: MapSpec, executor,
             progress: Callable[[int, int], None] | None = None) -> MapResult:
-    """Run every point of ``spec`` on ``executor``; progress(done, total) counts points."""
+    """
+    Run every point of ``spec`` on ``executor``; progress(done, total) counts points.
+
+    Raises :class:`MapPointError` (before any point runs) for a grid the configuration refuses.
+    """
+    check_points(config, spec)
     config_json = json.dumps(config_to_dict(config))
     total = spec.shape[0] * spec.shape[1]
     start = time.perf_counter()

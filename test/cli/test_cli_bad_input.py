@@ -8,13 +8,17 @@ One case per class of bad input, each through the real command in a subprocess.
 """
 from __future__ import annotations
 
+from pathlib import Path
 import subprocess
 import sys
 
+from mcap.writer import Writer
 import pytest
 from cli_output import assert_one_line
 
 MONTECARLO = ('montecarlo', '--delta', '0.01', '--samples', '2', '--out', 'study')
+READ_ONLY = Path('/proc')
+"""A system directory in which no file can be created, not even by root."""
 
 
 def run_cli(*args, cwd):
@@ -107,3 +111,127 @@ def test_a_run_that_diverges_after_the_preflight_is_one_line(tmp_path):
                             'integration.tolerance=1e-14: the run cannot be integrated: '
                             'no convergence in 1 iterations at t = 0.005 s',
                             'members [0] failed on sub-steps down to dt/16 too')
+
+
+# -- outputs checked before the work -------------------------------------------------------
+
+def _empty_mcap(path: Path) -> Path:
+    """Write a complete MCAP file without messages (a log the commands accept as input)."""
+    with open(path, 'wb') as stream:
+        writer = Writer(stream)
+        writer.start()
+        writer.finish()
+    return path
+
+
+def _leftovers(folder: Path) -> list[str]:
+    """Names in ``folder`` that a refused command may have left (probe files, outputs)."""
+    inputs = ('log.mcap', 'file', 'figure.png')
+    return sorted(p.name for p in folder.iterdir() if p.name not in inputs)
+
+
+@pytest.mark.parametrize('args, words', [
+    (('simulate', '--duration', '1', '--out', str(READ_ONLY / 'x.csv')),
+     ('--out: cannot create a file in /proc',)),
+    (('simulate', '--duration', '1', '--summary', 'missing/s.json'),
+     ('--summary: missing: no such directory',)),
+    (('simulate', '--duration', '1', '--summary', 'file/s.json'),
+     ('--summary: file is a file, not a directory',)),
+    (('simulate', '--duration', '1', '--plot', 'figure.png'),
+     ('--plot: figure.png is a directory; name a file',)),
+    (('simulate', '--duration', '1', '--plot', 'run.txt'),
+     ('--plot: run.txt: use a .png, ',)),
+    (('simulate', '--duration', '1', '--out', 'run.csv', '--summary', 'run.csv'),
+     ('--summary: run.csv is also --out; name another file',)),
+    (MONTECARLO[:-1] + ('file', '--duration', '1'), ('--out: file is a file, not a directory',)),
+    (MONTECARLO[:-1] + (str(READ_ONLY / 'study'), '--duration', '1'),
+     ('--out: cannot create a file in /proc',)),
+    (('map', '--speeds', '5', '--weights-on-bit', '1e5', '--out', 'file/map'),
+     ('--out: file is a file, not a directory',)),
+    (('rig', '--out', str(READ_ONLY / 'rig.mcap')), ('--out: cannot create a file in /proc',)),
+    (('assimilate', 'log.mcap', '--out', str(READ_ONLY / 'est.mcap')),
+     ('--out: cannot create a file in /proc',)),
+    (('assimilate', 'log.mcap', '--out', 'est.mcap', '--summary', 'missing/s.json'),
+     ('--summary: missing: no such directory',)),
+    (('assimilate', 'log.mcap', '--out', 'log.mcap'), ('--out: log.mcap is also LOG',)),
+    (('recover', 'log.mcap', '--out', str(READ_ONLY / 'fixed.mcap')),
+     ('--out: cannot create a file in /proc',)),
+    (('view', 'log.mcap', '--rrd', str(READ_ONLY / 'v.rrd')),
+     ('--rrd: cannot create a file in /proc',)),
+    (('view', 'log.mcap', '--rrd', 'v.txt'), ('--rrd: v.txt: use a .rrd file name',)),
+], ids=['simulate-read-only', 'simulate-missing-directory', 'simulate-parent-is-a-file',
+        'simulate-plot-is-a-directory', 'simulate-plot-format', 'simulate-same-file',
+        'montecarlo-existing-file', 'montecarlo-read-only', 'map-parent-is-a-file',
+        'rig-read-only', 'assimilate-read-only', 'assimilate-summary-missing-directory',
+        'assimilate-over-its-log', 'recover-read-only', 'view-read-only', 'view-format'])
+def test_outputs_that_cannot_be_written_are_refused_before_the_work(tmp_path, args, words):
+    """
+    Each output option is checked first: one line naming it, and nothing written.
+
+    Without the check each command runs its whole computation, then fails with a traceback
+    (or, for view, writes a file of another format).
+    """
+    _empty_mcap(tmp_path / 'log.mcap')
+    (tmp_path / 'file').write_text('a file where a directory is wanted\n')
+    (tmp_path / 'figure.png').mkdir()
+    assert_one_line(run_cli(*args, cwd=tmp_path), *words)
+    assert _leftovers(tmp_path) == []
+
+
+# -- bounds on what no run can finish -------------------------------------------------------
+
+MAP = ('map', '--out', 'map', '--speeds', '5', '--weights-on-bit', '1e5')
+
+
+@pytest.mark.parametrize('args, words', [
+    (('simulate', '--duration', '1', '--set', 'integration.time_step_s=1e-9'),
+     ('--set: integration.time_step_s: must be at least 1e-05 (a step takes about 0.2 ms',
+      'got 1e-09')),
+    (('twin', '--no-log', '--duration', '1', '--ros-args', '-p', 'time_step_s:=1e-9'),
+     ('--ros-args -p: time_step_s: must be at least 1e-05 (a step takes', 'got 1e-09')),
+    (MAP + ('--duration', 'inf'), ('--duration: must be positive and finite',)),
+    (('map', '--out', 'map', '--speeds', '1:20:1000000', '--weights-on-bit', '1e4:2e5:1000000'),
+     ('--speeds, --weights-on-bit: a grid of 1000000 x 1000000 = 1e+12 points would need',
+      'of memory')),
+    (('map', '--out', 'map', '--speeds', '1:20:1000000000000', '--weights-on-bit', '1e5'),
+     ("--speeds: '1:20:1000000000000': 1000000000000 values would need", 'of memory')),
+    (MAP + ('--duration', '1e9', '--window', '1e9'),
+     ('--window: 1e+09 s at 0.005 s per step', 'would need', 'of memory')),
+    (('rig', '--out', 'rig.mcap', '--duration', '1e8'),
+     ('--duration: 1e+08 s of rig log (4.02e+09 samples) would need', 'of memory')),
+], ids=['simulate-time-step', 'twin-time-step', 'map-duration-inf', 'map-grid',
+        'map-range', 'map-window', 'rig-duration'])
+def test_runs_that_cannot_finish_are_refused_at_once(tmp_path, args, words):
+    """A step below the stated minimum, a grid or a window beyond memory: one line, no output."""
+    assert_one_line(run_cli(*args, cwd=tmp_path), *words)
+    assert list(tmp_path.iterdir()) == []
+
+
+# -- a log that is not MCAP ------------------------------------------------------------------
+
+@pytest.mark.parametrize('command', [
+    ('replay', 'LOG'), ('replay', 'LOG', '--resimulate'), ('view', 'LOG', '--rrd', 'v.rrd'),
+    ('recover', 'LOG', '--out', 'fixed.mcap'), ('assimilate', 'LOG', '--out', 'est.mcap')],
+    ids=['replay', 'resimulate', 'view', 'recover', 'assimilate'])
+@pytest.mark.parametrize('log', ['text', 'empty', 'bag'])
+def test_a_log_that_is_not_mcap_is_exit_2(tmp_path, command, log):
+    """
+    A file without the MCAP magic, or a bag directory without an MCAP file: one line.
+
+    replay and view --rrd read such a file as a log of no messages and succeeded.
+    """
+    if log == 'bag':
+        path = tmp_path / 'run'
+        path.mkdir()
+        (path / 'run_0.mcap').write_text('not a log\n')
+        words = (f'{path}: no MCAP files in it (not a log)',)
+    else:
+        path = tmp_path / 'run.mcap'
+        path.write_text('not a log\n' if log == 'text' else '')
+        words = (f'{path}: not an MCAP file (' + ('empty)' if log == 'empty'
+                                                  else 'no MCAP magic at its start)'),)
+    if command[0] == 'recover' and log == 'bag':
+        words = (f'{path}: not a file (recover one split of a bag)',)
+    args = [str(path) if item == 'LOG' else item for item in command]
+    assert_one_line(run_cli(*args, cwd=tmp_path), *words)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [path.name]

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import csv
 import json
+import pickle
 
 import numpy as np
 import pytest
@@ -12,11 +13,13 @@ from drill_twin.cli.common import UsageError
 from drill_twin.cli.main import main
 from drill_twin.cli.map import parse_values
 from drill_twin.config import load_config
-from drill_twin.simulation.stick_slip_map import (COLUMNS, SSI_STEADY, MapSpec,
+from drill_twin.config.checks import ConfigValueError
+from drill_twin.config.loader import config_to_dict
+from drill_twin.simulation.stick_slip_map import (COLUMNS, SSI_STEADY, MapPointError, MapSpec,
                                                   compare_with_linear_stability,
-                                                  oscillation_frequency, run_map)
+                                                  oscillation_frequency, run_map, run_point)
 from drill_twin.simulation.stick_slip_map_io import read_map, write_map
-from drill_twin.uncertainty.executors import SerialExecutor
+from drill_twin.uncertainty.executors import LocalProcessExecutor, SerialExecutor
 from drill_twin.viz.map_figure import plot_map
 
 # A coarse string whose axial-torsional motion is linear but for the bit-rock law (seconds
@@ -163,13 +166,52 @@ def test_malformed_values_are_refused(text):
     (['--speeds', '5', '--weights-on-bit', '1e5', '--workers', '0'], '--workers'),
     (['--speeds', '5', '--weights-on-bit', '1e5', '--perturbation', '-1'], '--perturbation'),
     (['--speeds', '5', '--weights-on-bit', '1e5', '--set', 'integration.time_step_s=-1'],
-     'time_step_s')])
+     'time_step_s'),
+    # A point the configuration refuses is refused before any point runs (it broke the pool).
+    (['--speeds', '2,1000', '--weights-on-bit', '1e5'],
+     '--speeds: 1000 rad/s: operation.top_drive_speed_hz: must be at most 10'),
+    (['--speeds', '5', '--weights-on-bit', '1e5,5e6'],
+     '--weights-on-bit: 5e+06 N (hook load -3.837e+06 N): operation.hook_load_n: must be >= 0'),
+    # A still bit has no steady drilling (the linearisation gave a growth rate of +28 631 /s).
+    (['--speeds', '0,5', '--weights-on-bit', '1e5'],
+     '--speeds: must be > 0 (at 0 the bit does not turn'),
+    (['--speeds', '5', '--weights-on-bit', '1e5', '--set', 'reduced_basis.lateral_modes=10000'],
+     'the model cannot be built from it: reduced_basis.lateral_modes: asked for 10000')])
 def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys, options, option):
     code = main(['map', '--duration', '10', '--out', str(tmp_path / 'map')] + options)
     error = capsys.readouterr().err
     assert code == 2
     assert error.count('\n') == 1 and error.startswith('drill-twin: ') and option in error
     assert not (tmp_path / 'map').exists()
+
+
+def test_a_point_refused_in_a_worker_comes_back_as_its_error():
+    """
+    A configuration error raised in a worker process reaches the parent intact.
+
+    Run directly (run_map checks the grid first), a point at 1000 rad/s fails its
+    configuration's check in the worker; the error crosses back by pickling, and the pool
+    keeps working.
+    """
+    config_json = json.dumps(config_to_dict(load_config(None, COARSE)))
+    spec = MapSpec(speeds_rad_per_s=(1000.0,), weights_on_bit_n=(1e5,), duration_s=1.0,
+                   window_s=1.0)
+    executor = LocalProcessExecutor(1)
+    try:
+        with pytest.raises(ConfigValueError) as info:
+            list(executor.run(run_point, [(config_json, spec, 0)]))
+        assert info.value.key == 'operation.top_drive_speed_hz'
+        assert 'must be at most 10' in info.value.message
+        with pytest.raises(ConfigValueError):                  # the pool still runs tasks
+            list(executor.run(run_point, [(config_json, spec, 0)]))
+    finally:
+        executor.close()
+
+
+def test_grid_errors_survive_pickling():
+    error = MapPointError('speeds_rad_per_s', '1000 rad/s: too fast')
+    again = pickle.loads(pickle.dumps(error))
+    assert (type(again), str(again), again.key) == (MapPointError, str(error), error.key)
 
 
 def test_cli_writes_the_map_and_a_process_pool_reproduces_an_in_process_run(tmp_path):
