@@ -22,25 +22,25 @@ GAMMA = 0.5
 
 
 def predicted_displacement(d, v, a, dt):
-    """d* = d + dt v + (1/2 - beta) dt^2 a (the state's units; dt in s)."""
+    """Return the predicted displacement d* = d + dt v + (1/2 - beta) dt^2 a (dt in s)."""
     return d + dt * v + (0.5 - BETA) * dt * dt * a
 
 
 def predicted_velocity(v, a, dt):
-    """v* = v + (1 - gamma) dt a."""
+    """Return the predicted velocity v* = v + (1 - gamma) dt a."""
     return v + (1.0 - GAMMA) * dt * a
 
 
 def corrected_displacement(d_predicted, a_new, dt):
-    """d' = d* + beta dt^2 a'."""
+    """Return the corrected displacement d' = d* + beta dt^2 a'."""
     return d_predicted + BETA * dt * dt * a_new
 
 
 def corrected_velocity(v_predicted, a_new, dt):
-    """v' = v* + gamma dt a'."""
+    """Return the corrected velocity v' = v* + gamma dt a'."""
     return v_predicted + GAMMA * dt * a_new
 
 
 def effective_matrix(mass, damping, stiffness, dt):
-    """M + gamma dt C + beta dt^2 K: the matrix of the implicit step's linear part."""
+    """Return M + gamma dt C + beta dt^2 K, the matrix of the implicit step's linear part."""
     return mass + GAMMA * dt * damping + BETA * dt * dt * stiffness

@@ -61,7 +61,7 @@ KEPT_CACHES = 6
 
 
 def kernel_modules() -> list[Path]:
-    """This module and every module of the package that defines kernels, in a fixed order."""
+    """List this module and every module of the package that defines kernels, in order."""
     package = Path(__file__).resolve().parents[1]
     return [path for path in sorted(package.rglob('*.py'))
             if path.resolve() == Path(__file__).resolve()
