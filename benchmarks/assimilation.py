@@ -1,4 +1,4 @@
-"""Twin on twin (issue 15, section 3): the ensemble filter against a truth it does not know.
+"""Twin on twin: the ensemble filter against a truth it does not know.
 
     python benchmarks/assimilation.py [--duration 40] [--members 64] [--out DIR]
                                       [--settle 0 5 10 20] [--scale 1.3 ...]
@@ -14,7 +14,7 @@ at delta = 0.1 (seed 3), 2 % noise on the surface torque plus a bias of
 the default configuration (config/ritto2009.yaml: the paper's coefficients) with N members
 of germs at its prior dispersion, and uses the surface torque and the block position, with
 the filter settings of config/assimilation.yaml (change them with --set assimilation.K=V).
-Results: docs/ASSIMILATION.md.
+Results: docs/ASSIMILATION.md, "Evidence, twin on twin".
 
 The log goes through the MCAP writer and reader of ``drill-twin rig`` / ``assimilate``. The
 scores (the summary keys of ``drill-twin assimilate --summary``) are printed for several

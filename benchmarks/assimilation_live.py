@@ -3,19 +3,19 @@
     python benchmarks/assimilation_live.py RIG.mcap [--members 64] [--duration S]
         [--settle 0 10 20] [--out DIR] [--log-dir DIR] [--assimilation FILE]
 
-RIG.mcap is a rig emulator's log (``drill-twin rig``; ``benchmarks/assimilation.py`` writes
-the issue's twin-on-twin scenario as DIR/rig.mcap). A player node publishes, over FastDDS on
-this machine, ``/clock`` in 10 ms increments, the log's commands at their times and its
-sensor messages (``sensor_msgs/JointState``, stamped when sampled) at their arrival times, to
-the twin node (``use_sim_time``, 5 ms steps, the ensemble in its worker process) built as
-``ros2 run drill_twin twin`` builds it (``--log-dir``: the assimilating twin logs there), once with ``assimilation_enabled`` and once without
-(the open-loop reference, same members and germs). The player waits for the twin to reach
-each /clock before the next, so the result does not depend on this machine's speed. The bit
-speed of the twin's ensemble topics (mean and 95 % bounds, 20 Hz) is scored against the
-log's truth: RMS error, the open loop's, coverage of the truth by the bounds, after each
-settling time; and the wall time (real-time factor of the loop). ``--assimilation FILE``:
-the twin's assimilation_config (default the shipped one); the estimated sensor biases heard
-(if it estimates any) are printed and kept. Writes DIR/live.json.
+RIG.mcap is a rig emulator's log (``drill-twin rig``; ``benchmarks/assimilation.py`` writes the
+twin-on-twin scenario of docs/ASSIMILATION.md as DIR/rig.mcap). A player node publishes, over
+FastDDS on this machine, ``/clock`` in 10 ms increments, the log's commands at their times and
+its sensor messages (``sensor_msgs/JointState``, stamped when sampled) at their arrival times,
+to the twin node (``use_sim_time``, 5 ms steps, the ensemble in its worker process) built as
+``ros2 run drill_twin twin`` builds it (``--log-dir``: the assimilating twin logs there), once
+with ``assimilation_enabled`` and once without (the open-loop reference, same members and
+germs). The player waits for the twin to reach each /clock before the next, so the result does
+not depend on this machine's speed. The bit speed of the twin's ensemble topics (mean and 95 %
+bounds, 20 Hz) is scored against the log's truth: RMS error, the open loop's, coverage of the
+truth by the bounds, after each settling time; and the wall time (real-time factor of the
+loop). ``--assimilation FILE``: the twin's assimilation_config (default the shipped one); the
+estimated sensor biases heard (if it estimates any) are printed and kept. Writes DIR/live.json.
 """
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The driller's envelope offline: the sequence that made the twin restart members (issue 10).
+"""The driller's envelope offline: a brutal command sequence through a batch, no ROS.
 
     python benchmarks/envelope_offline.py [--time-step 0.01] [--delta 0.01] [--members 16]
                                           [--seed 7] [--scale 1.0]
@@ -14,7 +14,8 @@ and how many members were off bottom, and the wall time. ``--scale`` shortens ev
 
 The hook load is a force: 20 s at the weight + 40 kN, then 20 s at the weight - 30 kN, fling
 the string some 140 m up; back at the drilling hook load it falls and tags bottom at about
-14 m/s (a brutal landing, far outside what a driller does, kept as a stress test).
+14 m/s (a brutal landing, far outside what a driller does, kept as a stress test). Its
+result: docs/ENVELOPE.md, "Evidence".
 """
 from __future__ import annotations
 

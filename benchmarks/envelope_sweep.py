@@ -41,9 +41,9 @@ PICK_UP_SPEEDS_M_PER_S = (0.1, 0.25, 0.5, 1.0)
 LOWERING_SPEEDS_M_PER_S = (0.1, 0.25, 0.5)
 """Block speeds of running back down to TAG_DISTANCE_M above bottom."""
 TAG_SPEED_M_PER_S = 0.01
-"""Block speed of the last TAG_DISTANCE_M: a driller tags bottom gently (36 m/h, about the ROP). The
-bit-rock law's extrapolation makes a landing at block speed violent: at 0.1 m/s it asks
-1.8 MN and 120 kN m at 2 rad/s (README, envelope sweep)."""
+"""Block speed of the last TAG_DISTANCE_M: a driller tags bottom gently (36 m/h, about the ROP).
+The bit-rock law cutting at block speed would be violent: at 0.1 m/s and 2 rad/s its mean law
+asks 3.6 MN and 240 kN m (``BitRockLaw.mean(0.1, 2.0)`` of the default configuration)."""
 TAG_DISTANCE_M = 0.5
 
 

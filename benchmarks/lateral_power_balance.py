@@ -1,4 +1,4 @@
-"""Where the lateral modes' energy comes from, term by term, for a reading (issue 12).
+"""Where the lateral modes' energy comes from, term by term, for a reading.
 
     python benchmarks/lateral_power_balance.py [--seconds 60] [--window S] [--config F]
                                                [--set KEY=VALUE ...]
@@ -16,7 +16,7 @@ mean over the cycles, the change of the lateral energy and each term's work in t
 with what the reading costs elsewhere over the same window: the range of the bit speed, the
 torque on bit and the top torque (the paper's Fig. 9 and 10), and the 700 m station's radial
 displacement (its Fig. 11). The top drive's work per cycle is printed beside it: the only
-source of energy.
+source of energy. docs/LATERAL.md, "What feeds the lateral modes", tabulates it per reading.
 """
 from __future__ import annotations
 

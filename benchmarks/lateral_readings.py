@@ -1,4 +1,4 @@
-"""Tabulate `drill-twin simulate` runs against the paper's lateral figures (issue 12, section 1).
+"""Tabulate `drill-twin simulate` runs against the paper's lateral figures.
 
     python benchmarks/lateral_readings.py RUN.npz [RUN.npz ...] [--window 200 250] [--period 5]
 
@@ -10,7 +10,8 @@ of a signed displacement that crosses zero) and its spectrum (shares of the ener
 displacement below 0.1 Hz, 0.1-0.5 Hz and above 0.5 Hz, after removing the mean), wall
 contact (impact episodes and lift-off episodes in the window and over the run, the largest
 wall force), the bit speed (lowest: the paper's Figs. 10 and 13 fall to about zero), the
-torque on bit (Fig. 9's range) and the top torque.
+torque on bit (Fig. 9's range) and the top torque. docs/LATERAL.md, "Eq. 15 as printed",
+holds its table for the readings of Eq. 15.
 """
 from __future__ import annotations
 

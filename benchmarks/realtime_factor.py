@@ -1,4 +1,4 @@
-"""Real-time factor of the mean model and of batches (issue 3 targets: RTF >= 5 and >= 1 for 16).
+"""Real-time factor of the mean model and of batches (targets: docs/SPEED.md).
 
     python benchmarks/realtime_factor.py [--seconds S] [--members 1 16 64]
 

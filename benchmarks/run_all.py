@@ -22,13 +22,14 @@ machine for reference workloads that are not the twin (``benchmarks/pacing.py``:
 near 1 on a dedicated machine).
 
 On a shared machine the absolute figures move with the load; the matrix rate measured in the
-same run and the fractions say how much. This VM also slows down by up to half for periods of
-seconds to minutes while its load average stays near zero and no steal time shows (measured
-2026-12-03: a fixed pure-Python loop took 5.4 ms or 10.7 ms in consecutive blocks of one
-process, the mean model's step 121 or 212 us with it; memory-bound references track the step
-no better, correlation 0.2-0.7): each batch is therefore timed in BLOCKS blocks and its RTF
-given over all of them (what a user gets now), for the median block and for the fastest
-block (the code's speed on a quiet machine, as timeit's best of repeats).
+same run and the fractions say how much. A virtual machine can also slow down by up to half
+for periods of seconds to minutes while its load average stays near zero and no steal time
+shows (on the 2-core VM of docs/SPEED.md a fixed pure-Python loop takes 5.4 ms or 10.7 ms in
+consecutive blocks of one process, the mean model's step 121 or 212 us with it, and
+memory-bound references track the step no better, correlation 0.2-0.7): each batch is
+therefore timed in BLOCKS blocks and its RTF given over all of them (what a user gets), for
+the median block and for the fastest block (the code's speed on a quiet machine, as timeit's
+best of repeats).
 """
 from __future__ import annotations
 
@@ -55,8 +56,8 @@ SIMULATE_RUNS = 3
 BLOCKS = 10
 """Blocks a batch's timed steps are split into (timed each)."""
 MATRIX_ROWS, MATRIX_COLUMNS = 342, 166
-"""The dense product of the issue's yardstick: the paper model's field-wise DOFs by its
-reduced coordinates."""
+"""The dense product of the yardstick: the paper model's field-wise DOFs by its reduced
+coordinates."""
 
 
 def matrix_rate(members: int, seconds: float = 0.3) -> float:

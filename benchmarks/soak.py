@@ -15,7 +15,8 @@ and of its ensemble worker and the size of the log directory, stops the twin wit
 - the twin's exit status.
 
 Not a test: it takes as long as it is told (default one hour). A flat memory is a slope
-below 1 MB per hour (issue 9). The samples are written to ``--csv`` if given.
+below 1 MB per hour (docs/SPEED.md, "The twin node", gives the figures of a run at the
+shipped parameters). The samples are written to ``--csv`` if given.
 """
 from __future__ import annotations
 

@@ -2,7 +2,7 @@
 
     python benchmarks/speedup.py [REVISION] [--rounds 4] [--seconds 3] [--members 1 16]
 
-REVISION (default BASELINE: the code as issue 11 found it, before the compiled kernels) is
+REVISION (default BASELINE: the last revision before the compiled kernels) is
 checked out into a temporary git worktree. Each round runs that revision's own
 ``benchmarks/realtime_factor.py``, then this checkout's, each in a process of its own with
 its version first on PYTHONPATH (checked: the process imports the package from there), in
@@ -27,8 +27,8 @@ from pathlib import Path
 import numpy as np
 
 BASELINE = '376657b^'
-"""The revision issue 11 measured (RTF 10.3 for the mean model then): the parent of the
-commit that added numba."""
+"""The last revision without compiled kernels: the parent of the commit that added numba
+(docs/SPEED.md, "Targets and latest figures", gives the speed-up over it)."""
 CHECKOUT = Path(__file__).resolve().parents[1]
 
 

@@ -22,7 +22,7 @@ NAMESPACE_PREFIX = '/drill_twin'
 # Commands (subscriptions)
 CMD_TOP_DRIVE_SPEED = '/drill_twin/cmd/top_drive_speed'      # std_msgs/msg/Float64, rad/s
 CMD_HOOK_LOAD = '/drill_twin/cmd/hook_load'                  # std_msgs/msg/Float64, N
-# The rig's drives (issue 13, docs/DRIVES.md): mode switches as std_msgs/msg/String.
+# The rig's drives (docs/DRIVES.md): mode switches as std_msgs/msg/String.
 CMD_TOP_DRIVE_MODE = '/drill_twin/cmd/top_drive_mode'        # String: kinematic | dynamic
 CMD_TOP_DRIVE_CONTROLLER = '/drill_twin/cmd/top_drive_controller'
 """std_msgs/msg/String: stiff | soft_torque | impedance (the dynamic drive's controller)."""

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """
-An external stick-slip controller for the twin: the impedance law through topics (issue 13).
+An external stick-slip controller for the twin: the impedance law through topics.
 
 The twin's top drive runs dynamic under its plain PI speed loop (this node sends
 ``dynamic`` on /drill_twin/cmd/top_drive_mode and ``stiff`` on
@@ -13,8 +13,8 @@ the twin also has built in (``top_drive.controller: impedance``, docs/DRIVES.md)
 T the surface torque (/drill_twin/surface/torque, N m, through a first-order low-pass of
 ``--torque-filter`` s: the loop outside has a delay of a tick or two that the built-in law,
 closed within the model step, has not; unfiltered, the delayed feedback rings at the tick
-rate, docs/DRIVES.md), zeta the impedance (N m s/rad; the
-pipe's characteristic impedance I_p sqrt(rho k_s G) of the top section by default, as the
+rate, docs/DRIVES.md, "An external controller in the loop"), zeta the impedance (N m s/rad;
+the pipe's characteristic impedance I_p sqrt(rho k_s G) of the top section by default, as the
 built-in one), tau_m the mean filter's time constant (s). Readings are taken one per twin
 tick (``--sample-period``, the twin's 1 / rate_hz).
 

@@ -1,5 +1,5 @@
 """
-The torsional energy budget of the top drive and the string (issue 13, docs/DRIVES.md).
+The torsional energy budget of the top drive and the string (docs/DRIVES.md, "The top drive").
 
 For member 0 of a simulator driven by a rig's dynamic top drive, step by step:
 

@@ -1,7 +1,8 @@
 """
 Linear torsional stability of steady drilling with the top drive and its controller.
 
-Issue 13, docs/DRIVES.md: why a controller can or cannot remove stick-slip.
+Why a controller can or cannot remove stick-slip (docs/DRIVES.md, "Stick-slip controllers":
+the growth rates against WOB per controller).
 
 About steady drilling, with the axial motion quasi-static (constant WOB, as in
 :mod:`drill_twin.analysis.linear_stability`), the bit's resisting torque varies with the bit

@@ -1,5 +1,5 @@
 """
-Energy balance of the lateral motion, term by term (issue 12, section 1).
+Energy balance of the lateral motion, term by term.
 
 Where does the energy of the lateral modes come from? Along a run, the lateral energy
 E = q'^T M_r q' / 2 + q^T K_r q / 2 (lateral columns of the reduced model: bending in y and z,
@@ -16,7 +16,8 @@ steps integrated again on sub-steps (failed steps, and the steps in which a node
 leaves the wall when ``integration.contact_substeps`` > 1: the path inside them is finer
 than the full step's trapezoid the balance accumulates). A term with W > 0 feeds
 the lateral motion; the energy it brings comes from the axial and torsional motion it also
-acts on (the top drive in the end).
+acts on (the top drive in the end). docs/LATERAL.md, "What feeds the lateral modes",
+tabulates the terms per stick-slip cycle for each reading of the paper.
 """
 from __future__ import annotations
 

@@ -19,9 +19,9 @@ Three stages, each a few hundred milliseconds at most:
 With the default configuration the steady state is ROP 2.62 mm/s and TOB -5.56 kN m at
 5.215 rad/s and -100 kN, against a capacity of 450 kN m. Pure numerical core: no rclpy.
 
-The steady weight on bit is the hook-load balance f_c + (H - H_S) (README, "The mean
-model"); the Rayleigh drag alpha M ROP on the rigid axial motion is left out (5 N, 5e-5 of
-the weight on bit, at the default operating point).
+The steady weight on bit is the hook-load balance f_c + (H - H_S) (docs/MODEL-CHOICES.md,
+"Hook load and WOB"); the Rayleigh drag alpha M ROP on the rigid axial motion is left out
+(5 N, 5e-5 of the weight on bit, at the default operating point).
 """
 from __future__ import annotations
 

@@ -1,7 +1,8 @@
 """
 A torsional wave pulse travelling up the string, and its reflection at the top.
 
-Issue 13, docs/DRIVES.md: the evidence for the impedance controller.
+The evidence for the impedance controller (docs/DRIVES.md, "Stick-slip controllers":
+"Reflection of a torsional pulse").
 
 A wave going up (towards x = 0) is theta(x, t) = f(x + c t): its angular velocity is
 c f'(x + c t) and its twist theta' = f' = theta_dot / c. A Gaussian velocity pulse

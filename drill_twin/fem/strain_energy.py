@@ -187,8 +187,8 @@ def printed_eq15_strains(g: np.ndarray, theta_x) -> np.ndarray:
     -theta~_z y' + theta~_y z' = -theta_z y + theta_y z for the twisted coordinates (y', z').
     Their derivatives follow: kappa~_y = kappa_y cos - kappa_z sin - tau theta~_z,
     kappa~_z = kappa_z cos + kappa_y sin + tau theta~_y; e, a, b and tau are unchanged.
-    (docs/LATERAL.md, section 4; test/test_strain_energy.py checks it against the 3D
-    derivation of the printed displacement field.)
+    (docs/LATERAL.md, "Eq. 15 as printed"; test/fem/test_strain_energy.py checks it against
+    the 3D derivation of the printed displacement field.)
     """
     g = np.asarray(g)
     out = np.array(g, dtype=np.result_type(g, float), copy=True)

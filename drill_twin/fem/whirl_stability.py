@@ -2,8 +2,8 @@
 Linear whirl stability of the spinning string under internal, rotating damping.
 
 Here Rayleigh's stiffness-proportional damping acts on the strain rates of the spinning string
-(internal, rotating damping) - one reading of the paper to test for its lateral response
-(issue 12, section 1).
+(internal, rotating damping): one reading of the paper selectable for its lateral response
+(``lateral_readings.stiffness_damping``; docs/LATERAL.md, "What feeds the lateral modes").
 
 In the fixed frame the paper's damping is [C] = alpha (M + M_f) + beta (K + K_f + K_g), acting
 on u'. Read as material damping, the beta term acts on the strain rates of the string, i.e. on

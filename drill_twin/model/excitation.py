@@ -1,5 +1,5 @@
 """
-Lateral excitation that real drill strings have and the paper leaves out (issue 12, Sect. 2).
+Lateral excitation that real drill strings have and the paper leaves out (docs/LATERAL.md).
 
 Mass imbalance / bent-collar eccentricity. A mass m (already counted in the string's mass)
 has its centre at e from the axis of the node it sits on, in a direction fixed to the
@@ -22,7 +22,8 @@ drive pays for the whirl). The force turns with the local spin, so it follows th
 stick-slip. It is evaluated with the other non-linear forces; being linear in the node's
 accelerations, -A (v'', w'', theta_x''), its inertia A also enters the Newmark step's Newton
 matrix (Woodbury, :func:`~drill_twin.integrator.newmark_kernel.update`): as a fixed point alone
-it cost three iterations a step (20 % of the collars' local polar inertia for 1000 kg at 5 cm).
+it would cost three iterations a step (20 % of the collars' local polar inertia for 1000 kg at
+5 cm).
 
 One implementation: the compiled :func:`accumulate_imbalance`, called from
 ``forces.string_forces`` (the one sum of the string's forces, used by

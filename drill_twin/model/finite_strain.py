@@ -13,14 +13,14 @@ cost a third less than the compressed rows' short loops of varying length (28 ->
 the paper's 224 points, one member), and the padding adds exact zeros, so the sums are those
 of the compressed rows bit for bit.
 
-Readings of Eq. 15 (``lateral_readings.strain_kinematics``, issue 12): ``invariant`` (the
-project's, docs/MODEL-CHOICES.md) or Eq. 15 as printed, whose energy is W(g~(g, theta_x))
-with the tilts turned by the twist angle theta_x at the point
-(:func:`~drill_twin.fem.strain_energy.printed_eq15_strains`): ``printed_elastic`` (theta_x the
-elastic twist, relative to the top drive's angle) or ``printed_absolute`` (the top drive's
-angle added: it grows like Omega t). The printed energy depends on theta_x itself, so its
-force has a term on the twist DOFs, N_theta_x^T dW/dtheta_x; [K] + [K_g] are the same for
-every reading (at theta_x = 0 they agree), f_se carries the rest.
+Readings of Eq. 15 (``lateral_readings.strain_kinematics``; docs/LATERAL.md, "Eq. 15 as
+printed"): ``invariant`` (the default, docs/MODEL-CHOICES.md, "The finite-strain kinematics
+(Eq. 15)") or Eq. 15 as printed, whose energy is W(g~(g, theta_x)) with the tilts turned by the
+twist angle theta_x at the point (:func:`~drill_twin.fem.strain_energy.printed_eq15_strains`):
+``printed_elastic`` (theta_x the elastic twist, relative to the top drive's angle) or
+``printed_absolute`` (the top drive's angle added: it grows like Omega t). The printed energy
+depends on theta_x itself, so its force has a term on the twist DOFs, N_theta_x^T dW/dtheta_x;
+[K] + [K_g] are the same for every reading (at theta_x = 0 they agree), f_se carries the rest.
 """
 from __future__ import annotations
 

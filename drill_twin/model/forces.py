@@ -36,7 +36,7 @@ class Kinematics:
     force depends). Rates and accelerations include the driven rotation:
     theta_x_rate, theta_x_acceleration: (m, n_nodes); bending_y_rate,
     bending_y_acceleration: (v, theta_z) rates, (m, 2 n_nodes); bending_z_rate: (w, theta_y),
-    (m, 2 n_nodes); bit_axial_rate: ROP, (m,). For the excitation (dynamics/excitation.py):
+    (m, 2 n_nodes); bit_axial_rate: ROP, (m,). For the excitation (model/excitation.py):
     bending_z_acceleration: (w, theta_y), (m, 2 n_nodes) (None if not computed);
     top_angle_rad: the top-drive angle (rad), which the local spin angle adds to the twist.
     """
@@ -296,7 +296,7 @@ class NonlinearForces:
         in_contact = np.zeros((m, system.n_nodes), dtype=bool)
         bending_z_acceleration_t = None
         self.strain_operators.set_top_angle(fields.top_angle_rad)
-        if self.imbalance is not None:                # issue 12: rotating imbalance force
+        if self.imbalance is not None:                # the rotating imbalance force
             self.imbalance.set_top_angle(fields.top_angle_rad)
             if fields.bending_z_acceleration is not None:
                 bending_z_acceleration_t = members_last(fields.bending_z_acceleration,

@@ -1,5 +1,5 @@
 """
-Rayleigh's stiffness-proportional damping read as internal (rotating) damping (issue 12).
+Rayleigh's stiffness-proportional damping read as internal (rotating) damping.
 
 The paper's damping [C] = alpha (M + M_f) + beta K_t (K_t = K + K_f + K_g) acts on u', the
 velocities in the fixed frame. Read as material damping, the beta term acts on the strain
@@ -13,9 +13,10 @@ u' - Omega J u, J the quarter turn of the lateral DOFs about x (fem/whirl_stabil
 with Omega the local spin (the top drive's speed plus the elastic twist rate, rad/s) at the
 nodes of i and j: at a uniform spin it is beta Omega K_t J u exactly, the linearised term of
 fem/whirl_stability.py, whose growth rates (forward whirl above Omega* = 2 sqrt(alpha / beta))
-test/test_rotating_damping.py checks the time loop against; with the spin varying along the
-string (stick-slip) every element turns at the mean spin of its nodes. The force is a
-compiled kernel called from forces.string_forces, the one sum of the string's forces.
+test/model/test_rotating_damping.py checks the time loop against; with the spin varying along
+the string (stick-slip) every element turns at the mean spin of its nodes. The force is a
+compiled kernel called from forces.string_forces, the one sum of the string's forces. What
+this reading does at the paper's point: docs/LATERAL.md, "What feeds the lateral modes".
 """
 from __future__ import annotations
 

@@ -1,7 +1,8 @@
 """
-Stick-slip controllers: laws on the top drive's speed set-point (issue 13, docs/DRIVES.md).
+Stick-slip controllers: laws on the top drive's speed set-point.
 
-All three act on the set-point of the drive's PI speed loop:
+docs/DRIVES.md, "Stick-slip controllers", gives their stick-slip severity and the linear
+stability behind it. All three act on the set-point of the drive's PI speed loop:
 
 - ``stiff``: omega_sp = omega_ref (plain PI speed control).
 - ``soft_torque`` (SoftTorque/SoftSpeed): torque feedback band-limited and tuned on the

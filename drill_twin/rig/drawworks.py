@@ -2,7 +2,7 @@
 The drawworks.
 
 The travelling block moved at a commanded velocity, or by the autodriller to hold a WOB
-set-point, holding the string's top through the drill line (issue 13, docs/DRIVES.md).
+set-point, holding the string's top through the drill line (docs/DRIVES.md, "The drawworks").
 
 The paper's axial input is a hook force. A rig sets instead the block's motion; the hook load
 is what the line pulls, measured:

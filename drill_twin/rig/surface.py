@@ -1,11 +1,12 @@
 """
-What a rig's surface sensors read from the mean model, in SI (issue 13).
+What a rig's surface sensors read from the mean model, in SI.
 
 The top's speed and the string's torque at the top (a torque sub), the hook load (the
 drawworks' line pull when the block is driven, the hook force otherwise), the block position,
 the bit and hole depths, the ROP (the hole's deepening rate) and the surface WOB a rig
 computes, off-bottom hook load minus hook load (the off-bottom hook load being the string's
 weight as the model counts it, :class:`~drill_twin.integrator.envelope.StringEnvelope`).
+The twin publishes them (docs/ROS-INTERFACE.md, "Surface readings and the driller's view").
 """
 from __future__ import annotations
 

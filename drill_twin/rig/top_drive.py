@@ -4,7 +4,7 @@ The top drive: the paper's imposed speed, a machine under a PI speed loop, or a 
 Three drives set the top-drive speed of the coming step from the speed command
 (:class:`TopDriveMode`): :class:`KinematicTopDrive` (the paper's: the speed follows the command
 at a bounded acceleration), :class:`DynamicTopDrive` (a rotor of inertia J_d under a PI speed
-controller with a torque limit, driving the string's top; issue 13, docs/DRIVES.md) and
+controller with a torque limit, driving the string's top; docs/DRIVES.md, "The top drive") and
 :class:`FollowedTopSpeed` (another model's top speed, imposed step by step: the twin's
 ensemble turns at its mean model's). Each keeps its variables in a ``state`` dataclass (what
 a rig's checkpoint copies) and reads the simulator without writing into it.

@@ -39,7 +39,7 @@ class CommandLimits:
     The operator's command ranges (rad/s and N).
 
     A clamp on top of what the model can represent (the hook load's range derived from the
-    string, :mod:`.envelope`).
+    string, :mod:`drill_twin.integrator.envelope`).
     """
 
     top_drive_speed_max_rad_per_s: float = 30.0

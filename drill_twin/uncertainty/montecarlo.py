@@ -8,7 +8,7 @@ number of workers and on a Dask cluster.
 
 The mean model rides in the first chunk as one more member, with the germ [G] = I: the random
 law then equals the mean law exactly (its deviation terms vanish), and a member costs a
-batch far less than a run of its own, which used to hold one worker for a large share of a
+batch far less than a run of its own, which would hold one worker for a large share of a
 small study while the other waited. Like any batch neighbour, it changes the realizations only
 by rounding.
 

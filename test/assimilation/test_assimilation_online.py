@@ -1,4 +1,4 @@
-"""The twin's ensemble filter (issue 15): the engine takes rig samples as they arrive.
+"""The twin's ensemble filter: the engine takes rig samples as they arrive.
 
 The same :class:`~drill_twin.assimilation.sequential.SequentialFilter` runs offline over a log
 and in the twin's ensemble; these tests check that the twin, fed a rig's samples at their
@@ -71,8 +71,8 @@ def test_the_twin_analyses_exactly_what_the_offline_filter_does(config, settings
 
     One model step a tick: the same analyses and bit speeds to the last bit. The offline
     filter runs without its open-loop copies, so that both batches have the same 4 members:
-    with them (8) BLAS may sum in another order, and the stick-slip grows that rounding (with
-    the defaults of 2026-12-03 the two parted at the analysis of 1.4 s by 3e-15, by 1e-8 at 2 s).
+    with them (8) BLAS may sum in another order, and the stick-slip grows that rounding (a
+    difference of 1e-15 at one analysis can reach 1e-8 within a second).
     """
     _engine_against_offline(config, settings, rig_log, separate_process)
 

@@ -2,15 +2,15 @@
 A filter's member that cannot be integrated any more is replaced by a copy of another.
 
 An analysis can move a member's law to where the model breaks a physical bound from any
-state (a 64-member run of the law's coefficients did at 195 s: bit speed -227 rad/s); that
-used to stall the whole ensemble. Checked here: a copied member is the other member from then
-on (same state, same law; the same trajectory to the Newton iteration's tolerance: the copy
-verifies its first iterates afresh); the guarded batch hands members stalled on a bound to
-its ``on_stalled`` and reports the replacement, and without one (or with no healthy member
-left) still stalls; the filter draws donors from the member's own pool only and carries the
-donor's stored predictions over. The twin's open-loop ensemble (no filter) gives such a
-member a healthy member's state under a fresh draw of the germ (the next realization of its
-study).
+state (a 64-member run of the law's coefficients reaches one at 195 s: bit speed
+-227 rad/s); kept, such a member would stall the whole ensemble. Checked here: a copied
+member is the other member from then on (same state, same law; the same trajectory to the
+Newton iteration's tolerance: the copy verifies its first iterates afresh); the guarded
+batch hands members stalled on a bound to its ``on_stalled`` and reports the replacement,
+and without one (or with no healthy member left) still stalls; the filter draws donors from
+the member's own pool only and carries the donor's stored predictions over. The twin's
+open-loop ensemble (no filter) gives such a member a healthy member's state under a fresh
+draw of the germ (the next realization of its study).
 """
 from __future__ import annotations
 
@@ -189,9 +189,9 @@ def test_the_open_loop_ensemble_redraws_a_stalled_member_and_goes_on(config):
     """
     An open-loop member stalled on a bound takes a healthy state and realization N's germ.
 
-    The twin's open-loop ensemble used to drop whole on one such member; now the member is
-    redrawn (reported as member_replaced) and the ensemble goes on; the next one stalled
-    takes realization N + 1.
+    The member is redrawn (reported as member_replaced) rather than the ensemble dropped
+    whole, and the ensemble goes on; the next one stalled takes realization N + 1
+    (docs/ENVELOPE.md, "A step that cannot fail, and what happens if one does").
     """
     model, _, basis = modal_analysis(config)
     settings = EnsembleSettings(members=3, dispersion=0.2, seed=7)

@@ -1,12 +1,13 @@
 """
-The rock under the bit as a spring (``bit_rock.contact_stiffness_n_per_m``, issue 10).
+The rock under the bit as a spring (``bit_rock.contact_stiffness_n_per_m``).
 
 On a rigid rock the bit that lands is stopped within one time step: the landing's WOB is its
 momentum over dt and grows without bound as the step is refined (measured: 4.2, 5.8, 6.6 MN at
 5, 2.5, 1.25 ms). With the rock a spring k the landing is a spring-mass impact that lasts many
 steps: its peak converges with the step. Steady drilling does not touch the spring's branch of
 the law's graph: the paper's point is the rigid rock's to the last digit, the bit pressing the
-rock by WOB / k.
+rock by WOB / k (docs/MODEL-CHOICES.md, "The bit on and off bottom, and a bit equation that
+cannot fail", row "Landing"; docs/ENVELOPE.md, "Landings").
 """
 from __future__ import annotations
 
@@ -187,9 +188,10 @@ def test_a_stepped_state_evaluates_to_the_steps_own_bit_force_and_torque():
     Eight members of germs at delta 0.2 stepped 2 s: some cut, some rest on the rock's spring
     (moving faster than their law cuts at that force: the law at their velocities gives more
     than twice the force). The state evaluation, which an analysis's write-back and a reset
-    use for the accelerations, has the step's WOB and TOB on both branches (before
-    2026-12-03 it read the law at the velocities: 252 against 99 kN on the paper's string),
-    so writing a state back unchanged leaves its accelerations and its drilling as they were.
+    use for the accelerations, has the step's WOB and TOB on both branches (the law read at
+    the velocities would give 252 against 99 kN on the paper's string; docs/MODEL-CHOICES.md,
+    row "Landing"), so writing a state back unchanged leaves its accelerations and its drilling
+    as they were.
     """
     from drill_twin.assimilation.state import MemberState
     from drill_twin.uncertainty.germ import germs_for_realizations

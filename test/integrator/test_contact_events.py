@@ -1,5 +1,5 @@
 """
-Wall contact under sustained whirl (issue 12, section 3).
+Wall contact under sustained whirl (docs/LATERAL.md, "Contact and lift-off episodes").
 
 The contact force never does net positive work, the wall holds the string within a bounded
 penetration, and events are one per contact episode (hysteresis), with node depth and peak

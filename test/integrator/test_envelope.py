@@ -1,5 +1,5 @@
 """
-The model never diverges in the driller's envelope (issue 10).
+The model never diverges in the driller's envelope (docs/ENVELOPE.md).
 
 The envelope: top-drive speed 0 ... 30 rad/s (0: stopped with the bit on bottom, then
 restarted), hook load from the whole string's weight (bit lifted) down to WOB 300 kN, step

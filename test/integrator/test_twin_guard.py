@@ -2,8 +2,8 @@
 Plausibility: the hook-load range derived from the string, the state guard, honest KPIs.
 
 Bounds are checked against closed forms of the string (weights, masses, drag) and against
-the configurations and commands that produced nonsense before (issue 9): a 3 MN hook load on a
-1.16 MN string, bit_rock.a1_m_per_s = 10, bit_rock.a2_m_per_n_s = 1.0.
+configurations and commands that give nonsense without them: a 3 MN hook load on a 1.16 MN
+string, bit_rock.a1_m_per_s = 10, bit_rock.a2_m_per_n_s = 1.0.
 """
 from __future__ import annotations
 
@@ -83,7 +83,7 @@ def test_a_short_bha_caps_the_weight_on_bit():
 
 def test_the_weight_is_the_hook_load_of_zero_weight_on_bit(config):
     """
-    The stationary WOB is f_c + (H - H_S) (README).
+    The stationary WOB is f_c + (H - H_S) (docs/MODEL-CHOICES.md, "Hook load and WOB").
 
     Zero at H = W = H_S - f_c; the paper's string weighs 1.16 MN as the model counts it (steel
     and fluid).
@@ -274,7 +274,7 @@ def test_every_bound_of_the_guard_trips(config):
 
 def test_the_guards_measures_are_the_states_own():
     """
-    The compiled pass (dynamics.member_measures) against numpy on a random batch.
+    The compiled pass (integrator.member_measures) against numpy on a random batch.
 
     Finite flags (a nan, an inf, a huge finite value), the bit's and top's axial
     displacement and speed over the axial block, 1/2 q'.q'; non-finite members read zero.
@@ -408,7 +408,7 @@ def test_kpis_are_none_until_computable(config):
 
 
 def test_stick_slip_severity_is_undefined_without_forward_rotation():
-    """A bit turning backwards on average has no stick-slip severity (before: -60.8)."""
+    """A bit turning backwards on average has no stick-slip severity (NaN, no negative ratio)."""
     assert math.isnan(kpi.stick_slip_severity(np.array([-1.0, -3.0])))
     assert math.isnan(kpi.stick_slip_severity(np.array([0.0, 0.0])))
     assert kpi.stick_slip_severity(np.array([1.0, 3.0])) == pytest.approx(0.5)
@@ -469,9 +469,9 @@ def test_the_torque_the_law_pairs_with_an_accepted_landing_is_accepted():
     rad/s with 250 kN on the bit; the hook load then rises by 200 kN at once: the string
     springs up, the bit lifts off and lands again, each landing a WOB spike far above the
     envelope's 300 kN (the rock stops the bit within one step). At every step whose WOB is
-    inside its bound, the law's TOB is inside the TOB bound; the run reaches torques above the
-    earlier bound (three times the law's torque at 300 kN), which reset members whose WOB the
-    guard accepted (envelope sweep, 2026-12-02).
+    inside its bound, the law's TOB is inside the TOB bound; the run reaches torques above
+    three times the law's torque at 300 kN, so a TOB bound taken at the envelope's largest WOB
+    would reset members whose WOB the guard accepts.
     """
     from drill_twin.integrator.envelope import (ENVELOPE_TOP_DRIVE_SPEED_MAX_RAD_PER_S,
                                                 largest_torque_on_bit_nm)
@@ -497,5 +497,5 @@ def test_the_torque_the_law_pairs_with_an_accepted_landing_is_accepted():
     earlier = FORCE_MULTIPLE * largest_torque_on_bit_nm(
         simulator.law, ENVELOPE_TOP_DRIVE_SPEED_MAX_RAD_PER_S, guard.envelope.weight_on_bit_max_n)
     assert np.max(wob) > ENVELOPE_WEIGHT_ON_BIT_MAX_N            # landings hit hard
-    assert np.max(tob[accepted]) > earlier                       # the case of the sweep
+    assert np.max(tob[accepted]) > earlier                       # beyond the envelope's TOB
     assert np.all(tob[accepted] <= guard.torque_on_bit_max_nm)

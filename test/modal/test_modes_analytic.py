@@ -4,7 +4,7 @@ Eigenfrequencies in the analytic limits, at the default mesh density, and their 
 The default string has 56 elements over 1600 m. The uniform strings below keep that density
 (56 equal elements of 28.6 m). On the default *graded* mesh (43.75 m pipe elements) the
 5th fixed-free axial/torsional frequency is 0.56 % high (consistent mass, linear elements);
-README reports it.
+docs/VALIDATION.md, "Table 1", reports it.
 """
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """
-Wall friction drives backward whirl where rotordynamics says it should (issue 12, section 3).
+Wall friction drives backward whirl where rotordynamics says it should.
 
 A collar pressed on the wall by a rotating imbalance, with the friction acting as a force at
 the contact point (``borehole.tangential_friction``) and mu = 0.25, ends up rolling on the
@@ -9,7 +9,8 @@ wall: the pipe's surface does not slip, so its centre whirls backwards at the ro
 
 the kinematic closed form of rolling without slip (e.g. Jansen 1991, Black 1968). With the
 paper's rubbing torque alone (friction brakes the spin but does not push the string sideways)
-the same collar whirls forwards with the imbalance, as nothing can make it roll.
+the same collar whirls forwards with the imbalance, as nothing can make it roll
+(docs/LATERAL.md, "Friction at the wall and backward whirl").
 """
 from __future__ import annotations
 

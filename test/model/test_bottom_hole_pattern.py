@@ -1,9 +1,10 @@
 """
-The lobed hole bottom (``excitation.bottom_hole_pattern``, docs/LATERAL.md section 11).
+The lobed hole bottom (``excitation.bottom_hole_pattern``).
 
 Checked against the closed form of the linearised string (the weight on bit's steady
 harmonic answer to lobes of small height), the kinematics of the hole (what the reported ROP
-integrates to) and the bounce of high lobes (lift-off, landing, the hole only deepens).
+integrates to) and the bounce of high lobes (lift-off, landing, the hole only deepens);
+docs/LATERAL.md, "A lobed hole bottom: bit bounce", gives the figures.
 """
 from __future__ import annotations
 

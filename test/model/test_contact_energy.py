@@ -7,7 +7,7 @@ is exact for the springs of the string but not across the kink of the penalty la
 step that touches or leaves the wall gains or loses up to k p (dr - p) / 2; at the paper's
 5 ms step and k_ip = 1e8 N/m (a collar rings on the wall for about 10 ms) hundreds of impacts
 move the energy by several per cent, either way. ``integration.contact_substeps`` integrates
-those steps again on finer sub-steps (dynamics/simulator.py).
+those steps again on finer sub-steps (integrator/substeps.py).
 """
 from __future__ import annotations
 

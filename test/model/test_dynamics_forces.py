@@ -209,7 +209,7 @@ def test_contact_force_and_tangent(system):
 @pytest.mark.parametrize('seed', range(4))
 def test_tangential_wall_friction_opposes_the_slip_and_never_does_work(system, seed):
     """
-    borehole.tangential_friction: a friction force at the contact point (dynamics/contact.py).
+    borehole.tangential_friction: a friction force at the contact point (model/contact.py).
 
     At a node pressed on the wall with a random whirl velocity and spin: the radial force is the
     paper's, the friction force is tangential, of size mu |F_r| |sign_eps(s)|, and with its moment

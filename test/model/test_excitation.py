@@ -234,9 +234,10 @@ def test_the_newton_step_takes_the_imbalances_inertia_whole():
     Its inertia A on the node's (v, w, theta_x) (20 % of the collars' local polar inertia for
     1000 kg at 5 cm) enters S by the Woodbury identity, so one iteration lands where the
     converged step is, up to the fixed point of its velocity and angle terms: the first
-    iterate's accelerations are within 3e-4 of the change over the step (6.7e-5 measured; as a
-    fixed point, 1.7e-3, and the paper-length lateral profile took three iterations on 75 % of
-    its steps, one on 96 % now). Only the imbalance acts (f_se, f_ke, wall and bit off).
+    iterate's accelerations are within 3e-4 of the change over the step (6.7e-5 measured;
+    with the inertia left to the fixed point they are 1.7e-3 off, and the paper-length lateral
+    profile takes three iterations on 75 % of its steps, against one on 96 % with it). Only
+    the imbalance acts (f_se, f_ke, wall and bit off).
     """
     simulator = Simulator(_config(5.2))
     for _ in range(150):

@@ -1,8 +1,9 @@
 """
 The initial lateral deflection's shapes (``initial_conditions.lateral_shape``).
 
-The paper starts from a lateral deflection it does not give (Sect. 2.7); issue 12 asks for
-the first lateral mode, a half sine over the string and one over the BHA only.
+The paper starts from a lateral deflection it does not give (Sect. 2.7); the configuration
+offers the first lateral mode, a half sine over the string and one over the BHA only
+(docs/LATERAL.md, "What feeds the lateral modes": an initial deflection).
 """
 from __future__ import annotations
 

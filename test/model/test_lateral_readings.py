@@ -1,4 +1,4 @@
-"""Readings of the paper selectable for its lateral response (issue 12, section 1)."""
+"""Readings of the paper selectable for its lateral response (docs/LATERAL.md)."""
 from __future__ import annotations
 
 import numpy as np

@@ -1,8 +1,8 @@
 """
 Per-member bit-rock laws: a member whose a1 ... a5 are scaled is the string with that law.
 
-An ensemble filter estimates the law's coefficients member by member (issue 15), so the
-compiled step takes one row of constants per member. The reference is independent of that
+An ensemble filter estimates the law's coefficients member by member (docs/ASSIMILATION.md),
+so the compiled step takes one row of constants per member. The reference is independent of that
 path: a batch of one member whose configuration carries the scaled coefficients.
 """
 from __future__ import annotations

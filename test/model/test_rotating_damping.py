@@ -2,11 +2,11 @@
 Rayleigh's beta damping acting on the strain rates of the spinning string, in the time loop.
 
 ``lateral_readings.stiffness_damping: rotating_frame`` adds the circulatory force beta Omega
-K_t J u (dynamics/rotating_damping.py). Checked against physics, not against itself: the
+K_t J u (model/rotating_damping.py). Checked against physics, not against itself: the
 linearised string spinning at a constant speed above Omega* = 2 sqrt(alpha / beta) whirls
 forward and its lateral energy grows at twice the largest growth rate of the eigenvalue
 analysis (fem/whirl_stability.py, itself checked against Jeffcott's formula), at that mode's
-whirl frequency; the lateral energy balance closes with the new term as the only source; with
+whirl frequency; the lateral energy balance closes with that term as the only source; with
 the paper's fixed-frame reading the same string decays.
 """
 from __future__ import annotations

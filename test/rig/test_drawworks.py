@@ -1,5 +1,5 @@
 """
-The drawworks (issue 13, docs/DRIVES.md).
+The drawworks (docs/DRIVES.md, "The drawworks").
 
 Block-velocity input with the hook load measured, static equilibrium of the string against its
 weight, the autodriller's step response against the linearised closed form, and run-time
@@ -250,9 +250,9 @@ def test_the_autodriller_engaged_on_a_running_block_stays_within_its_feed_rate()
     The bumpless start is clamped to the ROP limit v_max, and so is the integral: the block
     slows to v_max and stops once the proportional action alone asks for less than nothing,
     so the WOB overshoots the set-point by at most v_max / K_p plus the line paid out while
-    the block decelerates from 0.2 m/s to v_max. Before, the integral started at 0.2 m/s and
-    this slow loop (natural period 2 pi / sqrt(k_eq K_i), about 130 s) fed the stopped bit
-    to 900 kN at a 200 kN set-point (envelope sweep, 2026-12-02).
+    the block decelerates from 0.2 m/s to v_max. An integral started unclamped at 0.2 m/s
+    would let this slow loop (natural period 2 pi / sqrt(k_eq K_i), about 130 s) feed the
+    stopped bit to several times the set-point (900 kN at a 200 kN set-point).
     """
     config = load_config(overrides=QUIET + ['drawworks.mode=block_velocity'])
     simulator = Simulator(config)
@@ -286,7 +286,7 @@ def test_the_autodriller_engaged_on_a_running_block_stays_within_its_feed_rate()
             load_config(overrides=[f'drawworks.autodriller_feed_rate_max_m_per_s={bad}'])
 
 
-# -- the drum's brake under the hook force (issue 10) ------------------------------------------
+# -- the drum's brake under the hook force -----------------------------------------------------
 
 def _pick_up_and_drop(brake: str):
     """

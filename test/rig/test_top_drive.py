@@ -1,5 +1,5 @@
 """
-The dynamic top drive against closed forms (issue 13, docs/DRIVES.md).
+The dynamic top drive against closed forms (docs/DRIVES.md, "The top drive").
 
 The string's torque predicted one step ahead, the torsional eigenfrequencies of the string with
 the drive's inertia and the PI loop's stiffness at the top, the PI step response on a rigid

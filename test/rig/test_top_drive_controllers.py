@@ -1,5 +1,5 @@
 """
-Stick-slip controllers on the dynamic top drive (issue 13, docs/DRIVES.md).
+Stick-slip controllers on the dynamic top drive (docs/DRIVES.md, "Stick-slip controllers").
 
 The reflection of a torsional pulse at the top, measured at a station of a long uniform pipe.
 """

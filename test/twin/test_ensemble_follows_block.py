@@ -1,10 +1,11 @@
 """
-The ensemble hangs every member's drill line from the rig's block (issue 13).
+The ensemble hangs every member's drill line from the rig's block.
 
 With the drawworks, the mean model's block moves; each member's line pulls its own hook load
-from that block, H_m = H_S + k_l (u_top,m - x_b - s_m) + c_l (u_top,m' - v_b). Before, the
-members took the mean model's hook load as a force, and a member whose hole was deeper than the
-mean model's fell further when the mean model set down.
+from that block, H_m = H_S + k_l (u_top,m - x_b - s_m) + c_l (u_top,m' - v_b)
+(docs/DRIVES.md, "Mean model and ensemble"). Members that took the mean model's hook load as
+a force instead would fall further, where their hole is deeper than the mean model's, when
+the mean model sets down.
 """
 from __future__ import annotations
 

@@ -1,10 +1,10 @@
 """
-The ensemble turns with the rig's top drive (issue 13).
+The ensemble turns with the rig's top drive (docs/DRIVES.md, "Mean model and ensemble").
 
 The members take the top speed the mean model's drive gave in each step, whatever the drive:
 the kinematic ramp, or the dynamic drive under a stick-slip controller switched on at run
-time. Before, they kept the configured kinematic drive under the speed set-point, and their
-confidence bounds described a string the rig was not turning.
+time. Members that kept the configured kinematic drive under the speed set-point would give
+confidence bounds for a string the rig is not turning.
 
 With dispersion 0 every member is the mean model, so each member must reproduce the mean
 model's bit speed, step for step, one tick later.

@@ -1,5 +1,5 @@
 """
-The twin's wall-contact events (issue 12, section 3).
+The twin's wall-contact events (docs/LATERAL.md, "Contact and lift-off episodes").
 
 One impact per contact episode of a node, with its depth, and the episode's peak force when it
 ends, not one per step a node chattering on the wall starts touching.

@@ -286,9 +286,9 @@ def test_a_hook_load_step_that_the_drums_brake_holds_goes_through_the_twin(confi
     The hook load 300 kN below the string's weight, from drilling, with an ensemble.
 
     The step makes the brake act (drawworks.block_speed_max_m_per_s) on the mean model and
-    on the members; every snapshot's surface hook load is one number, the members' too, and
-    the top never moves faster than the block can (the twin crashed on a (1,)-array hook load
-    the brake returned, envelope sweep 2026-12-02).
+    on the members; every snapshot's surface hook load is one number, the members' too (a
+    (1,)-array hook load from the brake would stop the twin), and the top never moves faster
+    than the block can.
     """
     from drill_twin.integrator.guard import StateGuard
     with threadpool_limits(limits=1, user_api='blas'):
