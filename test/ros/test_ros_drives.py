@@ -96,7 +96,6 @@ def test_drive_commands_echoes_surface_readings_and_log(drive_twin):
     from mcap_ros2.reader import read_ros2_messages
     from rcl_interfaces.msg import Log
 
-    from drill_twin.rig import drives as rig
     from drill_twin.recording import reader
 
     twin = drive_twin(model_overrides=TORSIONAL_AXIAL, ensemble_members=2, kpi_rate_hz=10.0)
@@ -117,9 +116,9 @@ def test_drive_commands_echoes_surface_readings_and_log(drive_twin):
     assert list(controller.name) == ['top_drive_controller=soft_torque']
     assert list(controller.position) == [1.0]
     assert list(limit.name) == ['top_drive_torque_limit'] and list(limit.position) == [60e3]
-    drive = rig.top_drive_of(sim)
+    drive = twin.node.engine.rig.top_drive
     assert twin.node.engine.top_drive_mode == 'dynamic'
-    assert drive.controller.name == 'soft_torque' and drive.loop.limit == 60e3
+    assert drive.controller.name == 'soft_torque' and drive.state.torque_limit_nm == 60e3
     lines = twin.rosout(Log.WARN, '/drill_twin/cmd/')
     for topic, value, what, reason in BAD:
         assert any(line.msg.startswith(f'{topic}: {what} command') and reason in line.msg
@@ -140,7 +139,7 @@ def test_drive_commands_echoes_surface_readings_and_log(drive_twin):
     twin.spin_until(lambda: twin.echoes(itf.CMD_AXIAL_MODE), 'the axial switch')
     axial = stamp_ns(twin.echoes(itf.CMD_AXIAL_MODE)[-1]) * 1e-9
     assert twin.node.engine.axial_mode == 'block_velocity'
-    assert rig.drawworks_of(sim).weight_on_bit_setpoint_n == 110e3
+    assert twin.node.engine.rig.commands.weight_on_bit_setpoint_n == 110e3
     twin.command(itf.CMD_HOOK_LOAD, 1.0e6)              # the line pulls what it pulls
     twin.spin_until(lambda: twin.rosout(Log.WARN, 'drill line'), 'the hook-load refusal')
     twin.spin_to(axial + 1.0)

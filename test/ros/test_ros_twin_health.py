@@ -52,11 +52,11 @@ def test_health_tells_the_truth(twin_factory):  # noqa: F811
     hook = node.engine.hook_load_command
     seen = len(twin.statuses('drill_twin: twin health'))
     broken = node.health.latest.get('mean_model_implausible_steps', 0)
-    node.engine.simulator.set_hook_load(3.0e6)               # past the door
+    node.engine.rig.set_hook_load(3.0e6)                     # past the door
     # Until the guard has caught it once (twin steps, not a wall-clock health period).
     twin.spin_until(lambda: node.health.latest.get('mean_model_implausible_steps', 0) > broken,
                     'an implausible step')
-    node.engine.simulator.set_hook_load(hook)
+    node.engine.rig.set_hook_load(hook)
     error = _health_after(twin, seen, lambda s: s.level == DiagnosticStatus.ERROR, 'an ERROR')
     assert 'the mean model broke a physical bound' in error.message
     assert 'beyond' in _values(error)['reason_1']
