@@ -4,9 +4,9 @@ One BLAS thread per process, set before numpy is imported.
 The reduced model's matrices are small (166 coordinates, 64 members): OpenBLAS's threads cost
 more than they give, and where the twin's processes already share the cores the threads spin
 against each other. The ensemble worker and the Monte Carlo workers already limit themselves
-(threadpoolctl); the node's own process, the in-process ensemble and the offline commands did
-not. Measured on this 2-core VM while another twin ran (2026-12-02): two steps of the mean
-model and of 64 members at delta 0.1 and WOB 300 kN in one process took 36 ms of CPU with
+(threadpoolctl); the node's own process, the in-process ensemble and the offline commands are
+limited here. On a 2-core VM beside another twin, two steps of the mean model and of 64
+members at delta 0.1 and WOB 300 kN in one process take 36 ms of CPU with
 OpenBLAS's default two threads, 6.6 ms with one; the state guard's products alone 2.3 ms
 against 0.39 ms. A value already set in the environment is kept.
 """

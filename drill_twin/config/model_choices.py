@@ -64,20 +64,20 @@ class ReducedBasis:
 @dataclass(frozen=True, slots=True, kw_only=True)
 class LateralReadings:
     """
-    Readings of the paper tested for its lateral response (issue 12, section 1).
+    Readings of the paper selectable for its lateral response (docs/LATERAL.md).
 
-    The defaults are the project's readings (docs/MODEL-CHOICES.md, docs/LATERAL.md).
+    The defaults are the readings taken (docs/MODEL-CHOICES.md, docs/LATERAL.md).
 
     kinetic_coupling: 'derived' (T_c = -rho I_p theta_x' theta_y theta_z', the sign that
     follows from the rotation sequence) or 'printed' (Eq. 8-11 as printed: the opposite).
     strain_kinematics: Eq. 15 'invariant' (the section twisted, then tilted: the energy does
     not depend on the spin angle) or as printed (u_x = u - y theta_z + z theta_y), with
     theta_x the elastic twist ('printed_elastic') or the absolute angle, top drive's included
-    ('printed_absolute'); docs/LATERAL.md, section 4.
+    ('printed_absolute'); docs/LATERAL.md, "Eq. 15 as printed".
     stiffness_damping: Rayleigh's beta K_t acting on the velocities in the fixed frame
     ('fixed_frame', the paper's [C] u') or on the strain rates of the spinning string
     ('rotating_frame': internal damping, which adds the circulatory force of
-    model/rotating_damping.py); docs/LATERAL.md, section 4.
+    model/rotating_damping.py); docs/LATERAL.md, "What feeds the lateral modes".
     """
 
     kinetic_coupling: KineticCouplingSign = 'derived'

@@ -1,15 +1,15 @@
 """
 What the string can plausibly do: scales derived from the configuration, ROS-free.
 
-The twin refuses commands the model cannot represent (the command door, :mod:`.engine`) and
-checks every step against physics (:mod:`.guard`) with the same numbers, all derived here
+The twin refuses commands the model cannot represent (the command door,
+:mod:`drill_twin.twin.commands`) and checks every step against physics (:mod:`.guard`) with the same numbers, all derived here
 from the model as built (the string's weight, mass, drag and geometry), never from our own
 output:
 
 - **String weight** W = H_S - f_c: the hook load that balances the whole string with the bit
   just touching the rock (WOB = 0), as the model counts it (steel and fluid loads of the
   prestress, Eq. 29: the prestressed hook load H_S carries everything but the bit reaction
-  f_c). The stationary WOB is f_c + (H - H_S) (README), so WOB = 0 at H = W.
+  f_c). The stationary WOB is f_c + (H - H_S) (docs/MODEL-CHOICES.md), so WOB = 0 at H = W.
 - **Axial drag** C = e^T [C] e, e the rigid axial translation: the viscous force per m/s that
   resists the whole string moving axially (Rayleigh alpha (M + M_f), the fluid's damping).
   A hook load W + dH lifts the string (off bottom, or away from the rock in today's model)
@@ -17,7 +17,7 @@ output:
   accepted hook load is W + C v_max: the string would never rise faster than
   PLAUSIBLE_BLOCK_SPEED_M_PER_S (a drawworks hoisting a stand). Anything more is refused:
   the model has no friction or block-travel limit, and 3 MN on this 1.16 MN string sent
-  the bit 7 km up at 470 m/s (issue 9).
+  the bit 7 km up at 470 m/s.
 - **Largest WOB**: the operating envelope's ENVELOPE_WEIGHT_ON_BIT_MAX_N, but at most the
   weight of the bottom-hole assembly (the sections below the lowest drill pipe), so that the
   neutral point stays in the BHA and the drill pipe in tension (the drilling engineer's
@@ -40,10 +40,10 @@ PLAUSIBLE_BLOCK_SPEED_M_PER_S = 1.0
 0.5 to 1.5 m/s; drilling (ROP) is a thousand times slower."""
 
 ENVELOPE_WEIGHT_ON_BIT_MAX_N = 300.0e3
-"""The operating envelope's largest weight on bit (N), issue 10."""
+"""The operating envelope's largest weight on bit (N), docs/ENVELOPE.md."""
 
 ENVELOPE_TOP_DRIVE_SPEED_MAX_RAD_PER_S = 30.0
-"""The operating envelope's fastest top-drive speed (rad/s), issue 10."""
+"""The operating envelope's fastest top-drive speed (rad/s), docs/ENVELOPE.md."""
 
 
 @dataclass(frozen=True)

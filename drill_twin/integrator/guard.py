@@ -21,8 +21,8 @@ multiples stated here:
   speeds at the same force scale as the WOB bound, WOB_max + Z v_block (the mean law, or the
   member's random law of Eq. 50: at delta = 0.1 up to 1.2 times the mean law's). The law pairs
   every WOB with a torque: a landing's WOB that the bound accepts brings the torque the law
-  gives at that WOB, which is then accepted too (before 2026-12-02 the torque scale was the law's
-  at WOB_max only, and the landings' TOB reset members whose WOB was inside its bound);
+  gives at that WOB, which is then accepted too (a torque scale taken at
+  WOB_max only would reset members, on a landing's TOB, whose WOB is inside its bound);
 - with wall contact modelled, every node's radial displacement <= its clearance plus the
   penetration PENETRATION_MULTIPLE x m_e c Omega^2 / k_ip (the wall force that holds the
   heaviest element whirling at the clearance at the envelope's top speed);

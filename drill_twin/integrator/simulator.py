@@ -110,7 +110,7 @@ class Simulator:
         self.state = self.integrator.initial_state(*self._initial_coordinates(speed), speed,
                                                    hook)
         self.last = self.integrator.evaluate(self.state)
-        # Events (issue 12): one impact per wall-contact episode, one lift-off per separation
+        # Events: one impact per wall-contact episode, one lift-off per separation
         # of the bit from the rock (hysteresis, integrator/contact_events.py).
         self.contact_episodes = ContactEpisodes(self.members, system.model.mesh.node_x_m,
                                                 keep_history=False)

@@ -7,7 +7,7 @@ from drill_twin.simulation.history import SimulationResult
 
 def summarize(result: SimulationResult, window_s: float, bit_diameter_m: float,
               member: int = 0) -> dict:
-    """Statistics of the last ``window_s`` seconds (see README, "simulate")."""
+    """Statistics of the last ``window_s`` seconds (docs/OUTPUTS.md, "--summary FILE.json")."""
     mask = result.window(window_s)
     ch = result.channels
     window = float(result.time_s[mask][-1] - result.time_s[mask][0])
@@ -41,7 +41,7 @@ def summarize(result: SimulationResult, window_s: float, bit_diameter_m: float,
 
 
 def _events_in_window(running_count) -> int:
-    """Events (episodes: dynamics/contact_events.py) that started inside the window."""
+    """Events (episodes: integrator/contact_events.py) that started inside the window."""
     return int(running_count[-1] - running_count[0])
 
 

@@ -2,7 +2,7 @@
 Bad input to the command line.
 
 One line ``drill-twin: ...`` naming the file or option, the key and the problem, and exit status
-2; never a traceback (issue 9, item 5).
+2; never a traceback.
 
 One case per class of bad input, each through the real command in a subprocess.
 """

@@ -243,7 +243,11 @@ def test_a_bad_value_from_the_file_is_not_blamed_on_an_unrelated_set(tmp_path):
 
 
 def test_the_lateral_profile_is_the_paper_with_an_imbalance(default_config):
-    """config/ritto2009_lateral.yaml (issue 12): the paper's string and point, m e = 50 kg m."""
+    """
+    The lateral profile: the paper's string and point, m e = 50 kg m.
+
+    config/ritto2009_lateral.yaml, docs/LATERAL.md "The lateral profile".
+    """
     profile = load_config(REPO / 'config' / 'ritto2009_lateral.yaml')
     imbalance = profile.excitation.imbalance
     assert imbalance.enabled
