@@ -2,9 +2,9 @@
 What the string can plausibly do: scales derived from the configuration, ROS-free.
 
 The twin refuses commands the model cannot represent (the command door,
-:mod:`drill_twin.twin.commands`) and checks every step against physics (:mod:`.guard`) with the same numbers, all derived here
-from the model as built (the string's weight, mass, drag and geometry), never from our own
-output:
+:mod:`drill_twin.twin.commands`) and checks every step against physics (:mod:`.guard`) with
+the same numbers, all derived here from the model as built (the string's weight, mass, drag
+and geometry), never from our own output:
 
 - **String weight** W = H_S - f_c: the hook load that balances the whole string with the bit
   just touching the rock (WOB = 0), as the model counts it (steel and fluid loads of the
