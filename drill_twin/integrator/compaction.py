@@ -192,24 +192,37 @@ def compacted(compact, modal, members, work, final, law, history, k):
 def scatter_back(index, k, modal, members, final, history, whole_modal, whole_members,
                  whole_final, whole_history):
     """Write what the iterations of the members index[:k] computed into the whole batch's."""
-    a, whole_a = modal.a, whole_modal.a
+    _scatter_columns(index, k, modal.a, whole_modal.a)
+    _scatter_columns(index, k, final.full, whole_final.full)
+    _scatter_columns(index, k, final.modal, whole_final.modal)
+    _scatter_rows(index, k, members.error, whole_members.error)
+    _scatter_rows(index, k, members.previous_error, whole_members.previous_error)
+    _scatter_rows(index, k, members.active, whole_members.active)
+    _scatter_rows(index, k, members.bit_ok, whole_members.bit_ok)
+    _scatter_rows(index, k, history.rate, whole_history.rate)
+    _scatter_rows(index, k, final.radial, whole_final.radial)
+    _scatter_rows(index, k, final.contact, whole_final.contact)
+    _scatter_rows(index, k, final.tangent, whole_final.tangent)
+    _scatter_rows(index, k, final.rop, whole_final.rop)
+    _scatter_rows(index, k, final.omega, whole_final.omega)
+    _scatter_rows(index, k, final.force, whole_final.force)
+    _scatter_rows(index, k, final.torque, whole_final.torque)
+    _scatter_rows(index, k, final.lifted, whole_final.lifted)
+    _scatter_rows(index, k, final.solved, whole_final.solved)
+    _scatter_rows(index, k, final.jacobian, whole_final.jacobian)
+
+
+@inline
+def _scatter_columns(index, k, compact, whole):
+    """Set whole[:, index[c]] = compact[:, c] for c < k (members-last arrays)."""
     for c in range(k):
         i = index[c]
-        for j in range(a.shape[0]):
-            whole_a[j, i] = a[j, c]
-        for j in range(final.full.shape[0]):
-            whole_final.full[j, i] = final.full[j, c]
-        for j in range(final.modal.shape[0]):
-            whole_final.modal[j, i] = final.modal[j, c]
-        whole_members.error[i] = members.error[c]
-        whole_members.previous_error[i] = members.previous_error[c]
-        whole_members.active[i] = members.active[c]
-        whole_members.bit_ok[i] = members.bit_ok[c]
-        whole_history.rate[i] = history.rate[c]
-        whole_final.radial[i] = final.radial[c]
-        whole_final.contact[i] = final.contact[c]
-        whole_final.tangent[i] = final.tangent[c]
-        whole_final.rop[i], whole_final.omega[i] = final.rop[c], final.omega[c]
-        whole_final.force[i], whole_final.torque[i] = final.force[c], final.torque[c]
-        whole_final.lifted[i], whole_final.solved[i] = final.lifted[c], final.solved[c]
-        whole_final.jacobian[i] = final.jacobian[c]
+        for j in range(compact.shape[0]):
+            whole[j, i] = compact[j, c]
+
+
+@inline
+def _scatter_rows(index, k, compact, whole):
+    """Set whole[index[c]] = compact[c] for c < k (members-first arrays)."""
+    for c in range(k):
+        whole[index[c]] = compact[c]

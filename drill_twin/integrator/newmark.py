@@ -74,8 +74,8 @@ from drill_twin.integrator.newmark_kernel import ON_BOTTOM_TOLERANCE_M
 from drill_twin.integrator.newmark_operands import (BatchWork, bit_law, final_evaluation,
                                                     stiffness_diagonal, step_operators,
                                                     string_force_operands)
-from drill_twin.integrator.step_operands import (AcceptanceHistory, StepInputs, StepOperands,
-                                                 StepStart, make_step_operands)
+from drill_twin.integrator.step_operands import (AcceptanceHistory, StepCounts, StepInputs,
+                                                 StepOperands, StepStart, make_step_operands)
 from drill_twin.model.forces import ForceEvaluation, Kinematics, NonlinearForces
 from drill_twin.numerics.records import record
 
@@ -369,8 +369,9 @@ class NewmarkIntegrator:
         inputs = StepInputs(top_speed=float(top_speed_rad_per_s),
                             top_acceleration=float(top_acceleration),
                             hooks=self._hooks(hook_load_n))
-        counts = compiled.step(tuple(start), tuple(inputs), tuple(history), self._operands(work),
-                               tuple(outputs), tuple(kept))
+        counts = StepCounts._make(compiled.step(
+            tuple(start), tuple(inputs), tuple(history), self._operands(work), tuple(outputs),
+            tuple(kept)))
         evaluation = final_evaluation(outputs, kept, work.final_tangent, counts.touching)
         self._active = (kept.contact, kept.lifted)     # shared, never written in place
         time = state.time_s + dt

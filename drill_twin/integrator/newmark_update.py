@@ -85,41 +85,39 @@ def _project(basis, force_t, modal):
 @inline
 def _keep_final(iteration, touching, active, work, modal, final):
     """Keep the evaluation of the members no longer active: their final state's."""
+    force_t, radial, in_contact, tangent = work.force_t, work.radial, work.in_contact, work.tangent
+    full, final_modal, final_radial = final.full, final.modal, final.radial
+    final_contact, final_tangent = final.contact, final.tangent
     if iteration == 1:
-        final.full[:, :] = work.force_t
-        final.modal[:, :] = modal
-        final.radial[:, :] = work.radial
-        final.contact[:, :] = work.in_contact
+        full[:, :] = force_t
+        final_modal[:, :] = modal
+        final_radial[:, :] = radial
+        final_contact[:, :] = in_contact
         if touching:
-            final.tangent[:, :, :, :] = work.tangent
+            final_tangent[:, :, :, :] = tangent
         else:
-            final.tangent[:, :, :, :] = 0.0
+            final_tangent[:, :, :, :] = 0.0
         return
     for i in range(active.shape[0]):
-        if not active[i]:
-            _keep_member(i, work, modal, touching, final)
-
-
-@inline
-def _keep_member(i, work, modal, touching, final):
-    """Copy member i's evaluation into the final one."""
-    force_t, radial = work.force_t, work.radial
-    for j in range(force_t.shape[0]):
-        final.full[j, i] = force_t[j, i]
-    for j in range(modal.shape[0]):
-        final.modal[j, i] = modal[j, i]
-    for node in range(radial.shape[1]):
-        final.radial[i, node] = radial[i, node]
-        final.contact[i, node] = work.in_contact[i, node]
-        for r in range(2):
-            for c in range(2):
-                final.tangent[i, node, r, c] = work.tangent[i, node, r, c] if touching else 0.0
+        if active[i]:
+            continue
+        for j in range(force_t.shape[0]):
+            full[j, i] = force_t[j, i]
+        for j in range(modal.shape[0]):
+            final_modal[j, i] = modal[j, i]
+        for node in range(radial.shape[1]):
+            final_radial[i, node] = radial[i, node]
+            final_contact[i, node] = in_contact[i, node]
+            for r in range(2):
+                for c in range(2):
+                    final_tangent[i, node, r, c] = tangent[i, node, r, c] if touching else 0.0
 
 
 @inline
 def _residual(linear, modal):
     """R = M a + C v + K d - Phi^T f - g into modal.residual, then y = S0^-1 R."""
     a, residual, product, d = modal.a, modal.residual, modal.product, modal.d
+    forces, load, diagonal = modal.modal, modal.load, linear.stiffness_diagonal
     n, members = a.shape
     if linear.mass_is_identity:
         residual[:, :] = a
@@ -127,9 +125,9 @@ def _residual(linear, modal):
         np.dot(linear.mass, a, residual)
     _block_product(linear.damping, linear.groups, modal.v, product)
     residual += product
-    if linear.stiffness_diagonal.shape[0] > 0:
+    if diagonal.shape[0] > 0:
         for j in range(n):
-            k = linear.stiffness_diagonal[j]
+            k = diagonal[j]
             for i in range(members):
                 residual[j, i] += d[j, i] * k
     else:
@@ -137,7 +135,7 @@ def _residual(linear, modal):
         residual += product
     for j in range(n):
         for i in range(members):
-            residual[j, i] = residual[j, i] - modal.modal[j, i] - modal.load[j, i]
+            residual[j, i] = residual[j, i] - forces[j, i] - load[j, i]
     _block_product(linear.inverse, linear.groups, residual, modal.y)
 
 
@@ -159,23 +157,26 @@ def _block_product(blocks, groups, x, out):
 def _wall_responses(touching, operators, imbalance, work, y, members):
     """Set S^-1 B with the contact tangents (Woodbury), for the members on the wall only."""
     local, n_nodes = operators.local, operators.basis.n_nodes
+    beta_dt2, bit_response, bit_flexibility = (operators.scheme.beta_dt2, local.bit_response,
+                                               local.bit_flexibility)
+    in_contact, tangent, displacement_t = work.in_contact, work.tangent, work.displacement_t
     on_wall, responses, flexibilities = members.on_wall, members.responses, members.flexibilities
     for i in range(on_wall.shape[0]):
-        on_wall[i] = touching > 0 and touches(work.in_contact, i, n_nodes) or imbalance[0]
+        on_wall[i] = touching > 0 and touches(in_contact, i, n_nodes) or imbalance[0]
         if on_wall[i]:
-            responses[i, :, :] = local.bit_response
+            responses[i, :, :] = bit_response
             flexibilities[i, :, :] = corrected_response(
-                i, in_contact=work.in_contact, tangent=work.tangent, n_nodes=n_nodes,
-                beta_dt2=operators.scheme.beta_dt2, local=local, imbalance=imbalance,
-                displacement_t=work.displacement_t, y=y, response=responses[i])
+                i, in_contact=in_contact, tangent=tangent, n_nodes=n_nodes, beta_dt2=beta_dt2,
+                local=local, imbalance=imbalance, displacement_t=displacement_t, y=y,
+                response=responses[i])
         else:
-            flexibilities[i, :, :] = local.bit_flexibility
+            flexibilities[i, :, :] = bit_flexibility
 
 
 @inline
 def _bit_rates(basis, local, modal, scratch):
     """Set the iterate's bit ROP (scratch[0]), B^T y (scratch[1:3]), |v|^2 (scratch[3])."""
-    v, y = modal.v, modal.y
+    v, y, bit_rows = modal.v, modal.y, local.bit_rows
     rop, by0, by1, speed = scratch[0], scratch[1], scratch[2], scratch[3]
     rop[:] = 0.0
     by0[:] = 0.0
@@ -183,11 +184,11 @@ def _bit_rates(basis, local, modal, scratch):
     speed[:] = 0.0
     members = rop.shape[0]
     for j in range(basis.ranges[0, 2], basis.ranges[0, 3]):
-        row = local.bit_rows[0, j]
+        row = bit_rows[0, j]
         for i in range(members):
             rop[i] += row * v[j, i]
     for j in range(v.shape[0]):
-        row0, row1 = local.bit_rows[0, j], local.bit_rows[1, j]
+        row0, row1 = bit_rows[0, j], bit_rows[1, j]
         for i in range(members):
             by0[i] += y[j, i] * row0
             by1[i] += y[j, i] * row1
@@ -203,54 +204,58 @@ def _solve_bits(operators, law, work, members, final):
     equation is solved relative to the surface under the bit, at the iterate's angle).
     Returns 1 if a member needed the bracketed solve.
     """
-    dt = operators.scheme.time_step_s
+    dt, bit_node = operators.scheme.time_step_s, operators.basis.bit_node
     scratch, flexibilities, touch = members.scratch, members.flexibilities, members.touch
+    active, theta_x_rate_t = members.active, work.theta_x_rate_t
+    displacement_t = work.displacement_t
     rop, by0, by1, p0, p1 = scratch[0], scratch[1], scratch[2], scratch[4], scratch[5]
-    rows, germs, static_force = law.rows, law.germs, law.static_force_n
+    rows, germs, fade_speeds, pattern = law.rows, law.germs, law.fade_speeds, law.pattern
+    static_force, bit_rock, random = law.static_force_n, law.bit_rock, law.random
+    bit_rop, bit_omega, bit_force, bit_torque = final.rop, final.omega, final.force, final.torque
+    lifted, solved, jacobian = final.lifted, final.solved, final.jacobian
     gdt = GAMMA * dt
     slope = rows[0, 7] * GAMMA / (BETA * dt)            # a compliant rock's resting branch
     robust_used = 0
     for i in range(rop.shape[0]):
-        omega = work.theta_x_rate_t[operators.basis.bit_node, i]
+        omega = theta_x_rate_t[bit_node, i]
         linear0, linear1 = rop[i] - gdt * by0[i], omega - gdt * by1[i]
         g = min(i, germs.shape[0] - 1)
         k = min(i, rows.shape[0] - 1)
-        if law.bit_rock:
-            height, kappa = surface_at(law.pattern, work.displacement_t, i)
+        if bit_rock:
+            height, kappa = surface_at(pattern, displacement_t, i)
             bit = solve_bit(
                 BitEquation(linear_rop=linear0, linear_omega=linear1,
                             flexibility=flexibilities[i], start_rop=rop[i], start_omega=omega,
                             touch=touch[i] + GAMMA / (BETA * dt) * height, slope=slope,
                             gdt=gdt, static_force_n=static_force, kappa=kappa),
                 MemberLaw(g11=germs[g, 0, 0], g12=germs[g, 0, 1], g22=germs[g, 1, 1],
-                          random=law.random, constants=rows[k],
-                          fade_speed=law.fade_speeds[k]))
+                          random=random, constants=rows[k], fade_speed=fade_speeds[k]))
             robust_used |= bit.robust
         else:
             bit = BitSolution(rop=linear0, omega=linear1, force=static_force, torque=0.0,
                               lifted=False, j00=0.0, j01=0.0, j10=0.0, j11=0.0, solved=True,
                               robust=0)
         p0[i], p1[i] = bit.force - static_force, bit.torque - 0.0
-        if members.active[i]:
-            final.rop[i], final.omega[i], final.force[i], final.torque[i] = (
+        if active[i]:
+            bit_rop[i], bit_omega[i], bit_force[i], bit_torque[i] = (
                 bit.rop, bit.omega, bit.force, bit.torque)
-            final.lifted[i], final.solved[i] = bit.lifted, bit.solved
-            final.jacobian[i, 0, 0], final.jacobian[i, 0, 1] = bit.j00, bit.j01
-            final.jacobian[i, 1, 0], final.jacobian[i, 1, 1] = bit.j10, bit.j11
+            lifted[i], solved[i] = bit.lifted, bit.solved
+            jacobian[i, 0, 0], jacobian[i, 0, 1] = bit.j00, bit.j01
+            jacobian[i, 1, 0], jacobian[i, 1, 1] = bit.j10, bit.j11
     return robust_used
 
 
 @inline
 def _accelerate(local, modal, members):
     """Set a = a - y + S^-1 B (F - F_c) of the active members; |increment|^2 in scratch[1]."""
-    a, y = modal.a, modal.y
+    a, y, bit_response = modal.a, modal.y, local.bit_response
     scratch, responses, active = members.scratch, members.responses, members.active
     on_wall = members.on_wall
     p0, p1 = scratch[4], scratch[5]
     norm = scratch[1]                                    # (B^T y is used up)
     norm[:] = 0.0
     for j in range(a.shape[0]):
-        r0, r1 = local.bit_response[j, 0], local.bit_response[j, 1]
+        r0, r1 = bit_response[j, 0], bit_response[j, 1]
         for i in range(a.shape[1]):
             if active[i]:
                 if on_wall[i]:
@@ -274,29 +279,32 @@ def _decide(iteration, operators, history, work, members, final):
     scheme, n_nodes = operators.scheme, operators.basis.n_nodes
     gdt, tolerance = GAMMA * scheme.time_step_s, scheme.tolerance
     rate, due, error, active = history.rate, members.due, members.error, members.active
+    bit_ok, previous_error, solved = members.bit_ok, members.previous_error, final.solved
     norm, speed = members.scratch[1], members.scratch[3]
+    have_rate, have_active = history.have_rate, history.have_active
+    previous_lifted, previous_contact = history.previous_lifted, history.previous_contact
+    lifted, in_contact = final.lifted, work.in_contact
     still = 0
     for i in range(active.shape[0]):
         was_active = active[i]
-        members.bit_ok[i] = members.bit_ok[i] and (not was_active or final.solved[i])
+        bit_ok[i] = bit_ok[i] and (not was_active or solved[i])
         new_error = gdt * np.sqrt(norm[i]) / (np.sqrt(speed[i]) + VELOCITY_SCALE)
-        members.previous_error[i] = error[i]
+        previous_error[i] = error[i]
         if was_active:
             error[i] = new_error
-        now = was_active and np.isfinite(error[i]) and members.bit_ok[i]
+        now = was_active and np.isfinite(error[i]) and bit_ok[i]
         done = now and error[i] <= tolerance and not (iteration == 1 and due[i])
-        if iteration == 1 and now and history.have_rate:
+        if iteration == 1 and now and have_rate:
             accept = np.isfinite(rate[i]) and not due[i]
-            if accept and history.have_active:
-                accept = history.previous_lifted[i] == final.lifted[i]
+            if accept and have_active:
+                accept = previous_lifted[i] == lifted[i]
                 for node in range(n_nodes):
-                    accept = accept and (history.previous_contact[i, node]
-                                         == work.in_contact[i, node])
+                    accept = accept and previous_contact[i, node] == in_contact[i, node]
             if accept and rate[i] / (1.0 - rate[i]) * error[i] <= tolerance:
                 error[i] = rate[i] / (1.0 - rate[i]) * error[i]
                 done = True
-        elif iteration == 2 and now and members.previous_error[i] > 0:
-            measured = error[i] / members.previous_error[i]
+        elif iteration == 2 and now and previous_error[i] > 0:
+            measured = error[i] / previous_error[i]
             if measured < 1.0:
                 rate[i] = measured
             elif due[i]:

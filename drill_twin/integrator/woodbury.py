@@ -42,11 +42,13 @@ def corrected_response(i, in_contact, tangent, n_nodes, beta_dt2, local, imbalan
     """
     index, d = _local_terms(i, in_contact, tangent, n_nodes, beta_dt2, imbalance,
                             displacement_t)
+    local_gram, local_directions, local_response = local.gram, local.directions, local.response
+    bit_rows = local.bit_rows
     rank = index.shape[0]
     gram = np.empty((rank, rank))
     for r in range(rank):
         for c in range(rank):
-            gram[r, c] = local.gram[index[r], index[c]]
+            gram[r, c] = local_gram[index[r], index[c]]
     system = np.eye(rank) + d @ gram
     if not np.all(np.isfinite(system)):
         # A diverged member (an infinite displacement has no direction on the wall): its
@@ -61,23 +63,23 @@ def corrected_response(i, in_contact, tangent, n_nodes, beta_dt2, local, imbalan
     responses = np.empty((n, rank))
     for j in range(n):
         for r in range(rank):
-            directions[j, r] = local.directions[j, index[r]]
-            responses[j, r] = local.response[j, index[r]]
+            directions[j, r] = local_directions[j, index[r]]
+            responses[j, r] = local_response[j, index[r]]
     projected = directions.T @ np.ascontiguousarray(y[:, i])
     change = responses @ (correction @ projected)
     for j in range(n):
         y[j, i] -= change[j]
     bit_gram = np.empty((rank, 2))
     for r in range(rank):
-        bit_gram[r, 0] = local.gram[index[r], 0]
-        bit_gram[r, 1] = local.gram[index[r], 1]
+        bit_gram[r, 0] = local_gram[index[r], 0]
+        bit_gram[r, 1] = local_gram[index[r], 1]
     response -= responses @ (correction @ bit_gram)
     flexibility = np.empty((2, 2))
     for r in range(2):
         for c in range(2):
             total = 0.0
             for j in range(n):
-                total += local.bit_rows[r, j] * response[j, c]
+                total += bit_rows[r, j] * response[j, c]
             flexibility[r, c] = total
     return flexibility
 
