@@ -180,9 +180,14 @@ class BatchWork:
         self.final_solved = empty(members, dtype=bool)
         self.outputs = RecycledArrays(lambda: new_outputs(n_dofs, n, nodes, members))
         self.kept = RecycledArrays(lambda: new_kept_flags(nodes, members))
-        arrays = (*self.modal, *self.members, *self.force_work, *new_outputs(
-            n_dofs, n, nodes, members)[8:], *new_kept_flags(nodes, members)[1:],
-            self.final_tangent, self.final_solved)
+        # The compacted iterations' buffers hold every array of the batch's iterations once
+        # (their sizes by dtype), plus the law's operands per member.
+        outputs, kept = new_outputs(n_dofs, n, nodes, members), new_kept_flags(nodes, members)
+        arrays = (*self.modal, *self.members, *self.force_work, outputs.full, outputs.modal,
+                  outputs.radial, outputs.rop, outputs.omega, outputs.force, outputs.torque,
+                  outputs.jacobian, kept.contact, kept.lifted, self.final_tangent,
+                  self.final_solved)
+        del outputs, kept                 # (the state's arrays are not the iterations')
         floats = sum(x.size for x in arrays if x.dtype == np.float64) + 16 * members
         flags = sum(x.size for x in arrays if x.dtype == np.bool_)
         self.compact = CompactBuffers(floats=empty(floats), flags=empty(flags, dtype=np.bool_),
