@@ -251,8 +251,10 @@ def step(start, inputs, history, operands, outputs, kept):
         if still == 0:
             break
     if compacted_count > 0:                      # back into the whole batch
-        scatter_back(operands.compact.index, compacted_count, modal, members, final, history,
-                     whole_modal, whole_members, whole_final, whole_history)
+        scatter_back(operands.compact.index, compacted_count, modal=modal, members=members,
+                     final=final, history=history, whole_modal=whole_modal,
+                     whole_members=whole_members, whole_final=whole_final,
+                     whole_history=whole_history)
     count = finish(whole_modal, whole_members, whole_final, basis, operators.local, scheme_,
                    operands.law,
                    NewState(q=outputs.q, q_rate=outputs.q_rate,
