@@ -3,9 +3,9 @@ The iterations after a step's first run on the members still iterating, gathered
 
 After the first iteration most members of a batch are done (accepted or converged); the
 later iterations run on the others only, gathered into arrays of their own carved out of the
-batch's :class:`~drill_twin.integrator.step_operands.CompactBuffers` (a member frozen after
-the first iteration costs nothing more: with wall contact, one member's Newton iterations
-used to cost the whole batch's). :func:`compacted` gathers, :func:`scatter_back` puts what
+batch's :class:`~drill_twin.integrator.step_operands.CompactBuffers`: a member frozen after
+the first iteration costs nothing more (with wall contact, one member's Newton iterations
+would otherwise cost the whole batch's). :func:`compacted` gathers, :func:`scatter_back` puts what
 the iterations wrote back into the whole batch's arrays. Every structure keeps its type: the
 gathered arrays are C-contiguous arrays of the same rank.
 

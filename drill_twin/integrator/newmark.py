@@ -39,9 +39,8 @@ in groups of VERIFY_GROUP members VERIFY_SPACING steps apart (at most VERIFY_SLO
 cycle: further groups share them). The schedule is the clock's, not
 counted from each member's last verification, so two runs of the same members take the same
 decisions whenever they were started; and since the later iterations run on the members
-still iterating only, a step's extra cost is that of a group (a 64-member batch verifying
-all at once, as it did, cost a second full iteration on 4 % of its steps: the longest twin
-ticks).
+still iterating only, a step's extra cost is that of a group, not of the batch (a 64-member
+batch verifying all at once would run a second full iteration on 4 % of its steps).
 
 Members are independent: every decision (convergence, acceptance, verification) is taken per
 member and converged members are frozen while others iterate, so a member's trajectory does

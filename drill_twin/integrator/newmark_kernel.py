@@ -235,7 +235,7 @@ def step(start, inputs, history, operands, outputs, kept):
                 operands.compact, modal, members, work, final, law, history, compacted_count)
         iterations = iteration
         fields(modal, scheme_.time_step_s, inputs, basis, work)
-        if forces.imbalance[0]:                    # the imbalance's node w'' (issue 12)
+        if forces.imbalance[0]:                    # the imbalance's node w'' (excitation.py)
             imbalance_node_acceleration(forces.imbalance, modal.a, work.bending_z_acceleration_t)
         work.force_t[:, :] = 0.0
         touching = string_forces(
