@@ -21,7 +21,7 @@ takes the work they do on the lateral motion from the torsion (so energy balance
 drive pays for the whirl). The force turns with the local spin, so it follows the
 stick-slip. It is evaluated with the other non-linear forces; being linear in the node's
 accelerations, -A (v'', w'', theta_x''), its inertia A also enters the Newmark step's Newton
-matrix (Woodbury, :func:`~drill_twin.integrator.newmark_kernel.update`): as a fixed point alone
+matrix (Woodbury, :mod:`~drill_twin.integrator.woodbury`): as a fixed point alone
 it would cost three iterations a step (20 % of the collars' local polar inertia for 1000 kg at
 5 cm).
 

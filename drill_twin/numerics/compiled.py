@@ -8,8 +8,9 @@ starts load it in milliseconds.
 
 Where. numba checks a cached kernel against its own source file only, not against the
 kernels it calls from other modules. The cache therefore lives in a folder named after a
-hash of every kernel-defining module of the package (``kernels-<hash>``): editing any of
-them starts a fresh cache. Inside it a kernel is found by its module's name, its line and its
+hash of the source of every kernel-defining module of the package and of the package modules
+they import (``kernels-<hash>``, :func:`kernel_modules`): editing any of them starts a fresh
+cache. Inside it a kernel is found by its module's name, its line and its
 source file's content, not by the file's path (numba's own locators add a folder per source
 path): a second checkout or a new virtual environment with the same kernels loads them instead
 of compiling them again. The folder is made under the first writable of: ``NUMBA_CACHE_DIR``,
@@ -33,6 +34,7 @@ fastmath are element-wise, reductions are not reordered). Measured: the 64-membe
 """
 from __future__ import annotations
 
+import ast
 import hashlib
 import os
 import shutil
@@ -61,11 +63,41 @@ KEPT_CACHES = 6
 
 
 def kernel_modules() -> list[Path]:
-    """List this module and every module of the package that defines kernels, in order."""
+    """
+    List the modules whose source the compiled kernels depend on, in a fixed order.
+
+    This module, every module of the package that defines kernels (``@kernel``, ``@inline``),
+    and every package module those import, transitively: a plain function compiled into a
+    kernel (the Newmark scheme's predictor, a constant) changes the kernels as much as the
+    kernel's own source does.
+    """
     package = Path(__file__).resolve().parents[1]
-    return [path for path in sorted(package.rglob('*.py'))
-            if path.resolve() == Path(__file__).resolve()
-            or any(marker in path.read_bytes() for marker in _MARKERS)]
+    by_name = {'.'.join((package.name, *path.relative_to(package).with_suffix('').parts)): path
+               for path in package.rglob('*.py')}
+    by_name = {name.removesuffix('.__init__'): path for name, path in by_name.items()}
+    wanted = {Path(__file__).resolve()} | {
+        path.resolve() for path in by_name.values()
+        if any(marker in path.read_bytes() for marker in _MARKERS)}
+    queue = list(wanted)
+    while queue:
+        for name in _imported_modules(queue.pop()):
+            path = by_name.get(name)
+            if path is not None and path.resolve() not in wanted:
+                wanted.add(path.resolve())
+                queue.append(path.resolve())
+    return sorted(wanted)
+
+
+def _imported_modules(path: Path) -> set[str]:
+    """Dotted names a module imports (``import a.b``, ``from a.b import c``: a.b and a.b.c)."""
+    names = set()
+    for node in ast.walk(ast.parse(path.read_bytes(), str(path))):
+        if isinstance(node, ast.Import):
+            names.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names.add(node.module)
+            names.update(f'{node.module}.{alias.name}' for alias in node.names)
+    return names
 
 
 def _source_hash() -> str:

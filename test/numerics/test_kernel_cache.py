@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
 import sys
 import time
@@ -74,10 +75,32 @@ def test_the_oldest_cache_folders_are_pruned(tmp_path):
 
 
 def test_the_cache_folder_follows_every_kernel_module_of_the_package():
-    """Kernels live in several packages: editing any of them must start a fresh cache."""
+    """
+    Kernels live in several packages and compile plain functions of others (the Newmark scheme).
+
+    Editing any of them must start a fresh cache: the hashed modules are those with a kernel
+    and every package module they import, found here by a plain text search of the sources.
+    """
     package = Path(compiled.__file__).resolve().parents[1]
-    expected = {path.relative_to(package).as_posix() for path in package.rglob('*.py')
-                if b'@kernel' in path.read_bytes() or b'@inline' in path.read_bytes()}
+    sources = {path.relative_to(package).as_posix(): path.read_text()
+               for path in package.rglob('*.py')}
+    wanted = {name for name, text in sources.items() if '@kernel' in text or '@inline' in text}
+    wanted.add('numerics/compiled.py')
+    grew = True
+    while grew:
+        grew = False
+        for name in sorted(wanted):
+            for other in set(sources) - wanted:
+                module = 'drill_twin.' + other.removesuffix('.py').replace('/', '.')
+                module = module.removesuffix('.__init__')
+                parent, _, last = module.rpartition('.')
+                patterns = (rf'^\s*import {re.escape(module)}\b',
+                            rf'^\s*from {re.escape(module)} import\b',
+                            rf'^\s*from {re.escape(parent)} import (\([^)]*|[^\n]*)\b{last}\b')
+                if any(re.search(pattern, sources[name], re.M) for pattern in patterns):
+                    wanted.add(other)
+                    grew = True
     hashed = {path.relative_to(package).as_posix() for path in compiled.kernel_modules()}
-    assert {'model/forces.py', 'integrator/newmark_kernel.py', 'analysis/kpi.py'} <= expected
-    assert hashed == expected | {'numerics/compiled.py'}
+    assert {'model/forces.py', 'integrator/newmark_kernel.py', 'analysis/kpi.py',
+            'integrator/newmark_scheme.py'} <= hashed
+    assert hashed == wanted
