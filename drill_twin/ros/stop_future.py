@@ -11,7 +11,7 @@ class StopFuture(Future):
     rclpy 7.1 (Jazzy) adds a fresh ``lambda x: self.wake()`` to the awaited future on every
     turn of ``Executor.spin_until_future_complete`` (ros2/rclpy#1374, #1702): a future awaited
     for hours collects one closure per tick, about 200 bytes, the node's whole memory growth
-    (1.2 MB/min at 100 Hz, issue 9). Callbacks of the same code and the same captured objects
+    (1.2 MB/min at 100 Hz). Callbacks of the same code and the same captured objects
     do the same thing; the first one is kept, the repeats are dropped.
     """
 

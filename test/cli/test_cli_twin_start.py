@@ -3,7 +3,7 @@ Start-up of ``drill-twin twin``.
 
 Node parameters checked before the node starts (one line, exit 2, whether given as options,
 ``-p`` rules or in a params file), rclpy's own refusal caught as a backstop, and SIGINT/SIGTERM
-honoured from the first instant (issue 9, items 5 and 6).
+honoured from the first instant.
 """
 from __future__ import annotations
 

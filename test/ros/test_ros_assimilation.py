@@ -1,4 +1,4 @@
-"""The twin node assimilating a rig's measurements, over real rclpy and FastDDS (issue 15).
+"""The twin node assimilating a rig's measurements, over real rclpy and FastDDS.
 
 A module of its own (its own ROS context): a probe publishes the rig's sensor messages
 (sensor_msgs/JointState, as docs/ASSIMILATION.md lays them out) to a fast twin whose ensemble

@@ -1,4 +1,4 @@
-"""The rig controller's interface over real rclpy and FastDDS (issue 13, section 4).
+"""The rig controller's interface over real rclpy and FastDDS (docs/DRIVES.md).
 
 The drive commands by topic (top-drive mode, controller, torque limit; axial mode, block
 velocity, WOB set-point), their validation, the echo of every applied command on
