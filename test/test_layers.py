@@ -14,6 +14,7 @@ import subprocess
 import sys
 
 from conftest import REPO
+import grimp
 
 
 def _lint_imports() -> subprocess.CompletedProcess:
@@ -45,3 +46,19 @@ def test_importing_the_core_leaves_rclpy_out():
                          text=True, timeout=300)
     assert run.returncode == 0, run.stderr[-3000:]
     assert run.stdout.strip() == '[]'
+
+
+def test_no_module_imports_itself_through_others():
+    """
+    No cycle between modules either, inside a package included (grimp, import-linter's graph).
+
+    For every import a -> b, no chain of imports leads from b back to a.
+    """
+    graph = grimp.build_graph('drill_twin', cache_dir=None)
+    cycles = []
+    for module in sorted(graph.modules):
+        for imported in sorted(graph.find_modules_directly_imported_by(module)):
+            back = graph.find_shortest_chain(importer=imported, imported=module)
+            if back:
+                cycles.append(' -> '.join((module, *back)))
+    assert not cycles, cycles
