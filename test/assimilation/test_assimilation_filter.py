@@ -261,6 +261,29 @@ def test_the_student_t_bounds_cover_a_new_draw_95_percent_of_the_time():
     assert np.mean(inside_p) < 7 / 9
 
 
+@pytest.mark.parametrize('members', [2, 3, 8, 64])
+def test_the_bounds_are_scipys_student_t_interval_and_numpys_quantiles(members):
+    """
+    interval() of (N, k) values, column by column, against scipy.stats and numpy.quantile.
+
+    student_t: mean -+ t.ppf(0.975, N - 1) s sqrt(1 + 1/N), s with ddof 1 (12.706 for N = 2);
+    percentile: numpy.quantile's 0.025 and 0.975 (linear interpolation).
+    """
+    from scipy import stats
+
+    from drill_twin.assimilation.bounds import interval
+
+    values = np.random.default_rng(members).gamma(2.0, 3.0, size=(members, 4)) - 5.0
+    mean = values.mean(axis=0)
+    half = (stats.t.ppf(0.975, members - 1) * values.std(axis=0, ddof=1)
+            * np.sqrt(1.0 + 1.0 / members))
+    np.testing.assert_allclose(interval(values, 'student_t'),
+                               [mean, mean - half, mean + half], rtol=1e-12)
+    np.testing.assert_allclose(interval(values, 'percentile'),
+                               [mean, *np.quantile(values, [0.025, 0.975], axis=0)], rtol=1e-12)
+    assert stats.t.ppf(0.975, 1) == pytest.approx(12.7062047, rel=1e-8)
+
+
 @settings(max_examples=25, deadline=None)
 @given(members=st.integers(8, 24), inflation=st.floats(1.0, 1.5),
        relaxation=st.floats(0.0, 0.9), seed=st.integers(0, 2**31))
