@@ -52,15 +52,27 @@ def rig_log(config, settings):
     return run_rig(config, settings, DURATION_S, germ=np.array([[1.1, 0.05], [0.05, 0.9]]))
 
 
-def _samples_by_arrival(log, channels):
-    """[(arrival s, Sample)] of the log, in the offline filter's order."""
-    from drill_twin.assimilation.offline import _sample
-    from drill_twin.assimilation.measurements import SENSOR_CHANNELS
-    return [(float(a), _sample(log, sensor, k, channels))
-            for a, sensor, k in sorted(
-                (float(a), sensor, k) for sensor, samples in log.sensors.items()
-                for k, a in enumerate(samples.arrival_s)
-                if any(c in channels for c in SENSOR_CHANNELS[sensor]))]
+def _samples_by_arrival(log, settings, channels):
+    """
+    [(arrival s, Sample)] of the log's sensors the filter uses, by arrival (then sensor).
+
+    Built here from the rig's settings, not by the offline filter's reader: sample k (0, 1,
+    ...) of a sensor of rate r and delay d is stamped (k + 1) / r and arrives d later; its
+    values are the log's k-th readings of the channels among ``channels``.
+    """
+    rows = []
+    for sensor, samples in log.sensors.items():
+        used = [c for c in samples.values if c in channels]
+        if not used:
+            continue
+        spec = getattr(settings.sensors, sensor)
+        for k in range(samples.arrival_s.size):
+            stamp = (k + 1) / spec.rate_hz
+            rows.append((stamp + spec.delay_s, sensor, stamp,
+                         {c: float(samples.values[c][k]) for c in used}))
+        assert (samples.arrival_s.size + 1) / spec.rate_hz + spec.delay_s > log.duration_s
+    return [(arrival, Sample(sensor, stamp, values))
+            for arrival, sensor, stamp, values in sorted(rows, key=lambda row: row[:2])]
 
 
 @pytest.mark.parametrize('separate_process', [False, True])
@@ -112,7 +124,7 @@ def _engine_against_offline(config, settings, rig_log, separate_process):
         members=spec.members, dispersion=spec.prior_dispersion, seed=spec.seed,
         separate_process=separate_process, assimilation=settings))
     try:
-        arrivals = _samples_by_arrival(rig_log, spec.measurements)
+        arrivals = _samples_by_arrival(rig_log, settings, spec.measurements)
         analyses, speeds, dt = [], {}, engine.dt
         for _ in range(int(round(DURATION_S / dt)) + 1):
             while arrivals and arrivals[0][0] <= engine.time_s + dt + 1e-9:
@@ -270,8 +282,13 @@ def test_the_filter_estimates_the_laws_factors_and_publishes_them(config, walk):
     after = sequential.state.extract()[:, -8:]
     factors = simulator.integrator.law_scales[:6]
     np.testing.assert_allclose(record.law_mean, factors.mean(axis=0), rtol=1e-12)
-    assert np.all(np.array(record.law_lower) <= record.law_mean)
-    assert np.all(np.array(record.law_mean) <= record.law_upper)
+    np.testing.assert_allclose(record.law_lower, np.quantile(factors, 0.025, axis=0), rtol=1e-12)
+    np.testing.assert_allclose(record.law_upper, np.quantile(factors, 0.975, axis=0), rtol=1e-12)
+    germs = simulator.integrator.germ[:6]
+    entries = np.stack([germs[:, 0, 0], germs[:, 0, 1], germs[:, 1, 1]], axis=1)
+    for published, level in ((record.germ_lower, 0.025), (record.germ_upper, 0.975)):
+        np.testing.assert_allclose(published, np.quantile(entries, level, axis=0), rtol=1e-12)
+    assert np.all(np.ptp(factors, axis=0) > 0) and np.all(np.ptp(entries, axis=0) > 0)
     assert not np.allclose(after[:, 3:], before[:, 3:])                # the law was analysed
     if walk:
         assert np.all(after.std(axis=0) > 0)
