@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from string_geometry import node_masses_and_clearances
 
 from drill_twin.config import load_config
 from drill_twin.model.bit_equation import solve_bit_equation
@@ -219,8 +220,7 @@ class EnvelopeRun:
     def __init__(self, simulator: Simulator):
         self.sim = simulator
         self.rig = Rig(simulator)
-        system = simulator.system
-        self.clearance = system.clearance_m
+        self.clearance = node_masses_and_clearances(simulator.config)[1]
         self.hole = simulator.observe(detailed=0).hole_depth_m.copy()
         self.lifted = np.zeros(simulator.members, dtype=bool)
         self.landed = np.zeros(simulator.members, dtype=bool)

@@ -14,6 +14,10 @@ import numpy as np
 import pytest
 from threadpoolctl import threadpool_limits
 
+from guard_formulas import (BLOCK_SPEED_M_PER_S, TOP_SPEED_MAX_RAD_PER_S, WOB_MAX_N,
+                            guard_bounds, impact_weight_on_bit_n, lateral_max_m,
+                            law_torque_max_nm)
+
 from drill_twin.config import ConfigError, load_config
 from drill_twin.analysis import kpi
 from drill_twin.integrator.member_measures import measure_members
@@ -21,9 +25,8 @@ from drill_twin.integrator.newmark import BatchState
 from drill_twin.integrator.simulator import Simulator
 from drill_twin.rig.rig import Rig
 from drill_twin.twin.engine import CommandRejected, EnsembleSettings, TwinEngine
-from drill_twin.integrator.envelope import (ENVELOPE_WEIGHT_ON_BIT_MAX_N,
-                                            PLAUSIBLE_BLOCK_SPEED_M_PER_S, StringEnvelope)
-from drill_twin.integrator.guard import FORCE_MULTIPLE, StateGuard
+from drill_twin.integrator.envelope import StringEnvelope
+from drill_twin.integrator.guard import StateGuard
 
 TWIN_STEP = ['integration.time_step_s=0.01']
 
@@ -62,9 +65,10 @@ def test_envelope_of_a_dry_string_is_its_weight_mass_and_drag():
     alpha = config.damping.mass_coefficient_per_s
     assert envelope.axial_drag_n_s_per_m == pytest.approx(alpha * sum(masses), rel=1e-9)
     assert envelope.bha_weight_n == pytest.approx(g * masses[-1], rel=1e-6)
-    assert envelope.weight_on_bit_max_n == ENVELOPE_WEIGHT_ON_BIT_MAX_N     # < the BHA
+    assert envelope.weight_on_bit_max_n == WOB_MAX_N                        # < the BHA
     assert envelope.hook_load_max_n - envelope.string_weight_n == pytest.approx(
-        alpha * sum(masses) * PLAUSIBLE_BLOCK_SPEED_M_PER_S, rel=1e-9)
+        alpha * sum(masses) * BLOCK_SPEED_M_PER_S, rel=1e-9)
+    assert envelope.string_weight_n - envelope.hook_load_min_n == WOB_MAX_N
 
 
 def test_a_short_bha_caps_the_weight_on_bit():
@@ -113,7 +117,7 @@ def test_hook_loads_the_model_cannot_represent_are_refused(config):
     assert all('previous command stays' in e.message for e in events)
     # The edges are accepted: the bit just off the rock, and WOB 300 kN.
     engine.set_hook_load(envelope.hook_load_max_n)
-    engine.set_hook_load(envelope.string_weight_n - ENVELOPE_WEIGHT_ON_BIT_MAX_N + 1.0)
+    engine.set_hook_load(envelope.string_weight_n - WOB_MAX_N + 1.0)
     assert engine.rejected_commands == 2 and engine.commands_received == 4
 
 
@@ -130,7 +134,7 @@ def test_the_highest_hook_load_lifts_the_string_no_faster_than_a_block(config):
     snapshots = _advance(engine, 300)
     velocity = np.array([s.observation.bit_axial_velocity_m_per_s[0] for s in snapshots])
     assert velocity[-1] < 0                                   # lifted: rising
-    assert np.all(-velocity < PLAUSIBLE_BLOCK_SPEED_M_PER_S)
+    assert np.all(-velocity < BLOCK_SPEED_M_PER_S)
     assert not any(e.kind in ('implausible', 'diverged') for s in snapshots for e in s.events)
     last = snapshots[-1]
     assert last.observation.bit_depth_m[0] < last.observation.hole_depth_m[0]   # off bottom
@@ -155,8 +159,9 @@ def test_a_hook_load_past_the_door_trips_the_guard_and_nothing_implausible_comes
     drum's brake (``drawworks.block_speed_max_m_per_s``) would hold the string to 1 m/s: it is
     switched off here, the bare hook force of the paper being what the guard must survive.
     """
-    engine = _engine(load_config(None, TWIN_STEP + ['drawworks.block_speed_max_m_per_s=null']))
-    guard = engine._mean.guard
+    config = load_config(None, TWIN_STEP + ['drawworks.block_speed_max_m_per_s=null'])
+    engine = _engine(config)
+    bounds = guard_bounds(config, 0.0)
     engine.rig.set_hook_load(3.0e6)
     snapshots = _advance(engine, 100)
     breaches = [e for s in snapshots for e in s.events if e.kind == 'implausible']
@@ -165,10 +170,10 @@ def test_a_hook_load_past_the_door_trips_the_guard_and_nothing_implausible_comes
     for s in snapshots:
         hole = float(s.observation.hole_depth_m[0])
         assert hole <= 1600.02                 # the restarts drill about 1 cm in the second
-        assert 0 <= s.bit.depth_m <= hole + guard.bit_penetration_m
-        assert abs(s.bit.rop_m_per_s) <= guard.axial_speed_max_m_per_s
-        assert abs(float(s.observation.hook_velocity_m_per_s[0])) <= guard.axial_speed_max_m_per_s
-        assert abs(s.bit.speed_rad_per_s) <= guard.rotation_speed_max(0.0)
+        assert 0 <= s.bit.depth_m <= hole + bounds['penetration']
+        assert abs(s.bit.rop_m_per_s) <= bounds['rop']
+        assert abs(float(s.observation.hook_velocity_m_per_s[0])) <= bounds['top_axial_speed']
+        assert abs(s.bit.speed_rad_per_s) <= bounds['bit_speed']
     health = snapshots[-1].health
     assert health['mean_model_implausible_steps'] == len(breaches) == health['mean_model_resets']
     assert snapshots[-1].step == 100                         # the clock went on
@@ -266,10 +271,10 @@ def test_every_bound_of_the_guard_trips(config):
     simulator.state = saved.copy()
 
     # A compressive spike (the rock pushing the bit up: f_bit < 0) reads as a positive WOB.
-    simulator.last.weight_on_bit_n[0] = -2.0 * guard.weight_on_bit_max_n
+    wob = guard_bounds(config, 0.0)['wob']
+    simulator.last.weight_on_bit_n[0] = -2.0 * wob
     (reason,) = guard.check(simulator).values()
-    assert reason == (f'WOB {2.0 * guard.weight_on_bit_max_n:.4g} N (compression > 0) is '
-                      f'beyond +-{guard.weight_on_bit_max_n:.4g} N')
+    assert reason == (f'WOB {2.0 * wob:.4g} N (compression > 0) is beyond +-{wob:.4g} N')
 
 
 def test_the_guards_measures_are_the_states_own():
@@ -329,11 +334,12 @@ def test_the_compiled_screen_decides_as_the_full_check(config):
     axial, torsion = system.blocks['axial'].columns, system.blocks['torsional'].columns
     bending = system.blocks['bending_z']
     shape = bending.shapes[:system.n_nodes, 0]
-    node = int(np.argmax(np.abs(shape) / guard.lateral_max_m))      # the first to touch
-    bounds = {'rop_m_per_s': guard.axial_speed_max_m_per_s,
-              'bit_speed_rad_per_s': guard.rotation_speed_max(top),
-              'weight_on_bit_n': guard.weight_on_bit_max_n,
-              'torque_on_bit_nm': float(guard.torque_on_bit_max_nm)}
+    lateral = lateral_max_m(config)
+    node = int(np.argmax(np.abs(shape) / lateral))                   # the first to touch
+    expected = guard_bounds(config, top)
+    bounds = {'rop_m_per_s': expected['rop'], 'bit_speed_rad_per_s': expected['bit_speed'],
+              'weight_on_bit_n': expected['wob'], 'torque_on_bit_nm': expected['tob']}
+    top_row = system.top_axial_row[axial]
     for k in range(members):
         factor = (0.6, 0.9, 1.1, 1.4)[k // 10]
         kind = k % 10
@@ -342,20 +348,19 @@ def test_the_compiled_screen_decides_as_the_full_check(config):
             bit[name][k] = factor * bounds[name] * (-1) ** (k // 10)
         elif kind == 4:
             state.q_rate[k, axial] = 0.0
-            state.q_rate[k, axial.start] = factor * guard.axial_speed_max_m_per_s / (
-                guard._top_row[0])
+            state.q_rate[k, axial.start] = factor * expected['top_axial_speed'] / top_row[0]
         elif kind == 5:
             state.q_rate[k, torsion] = 0.0
             state.q_rate[k, torsion.start] = factor * math.sqrt(
                 2 * guard.kinetic_energy_max(top))
         elif kind == 6:
-            hole[k] -= (factor - 0.5) * 2 * guard.bit_penetration_m
+            hole[k] -= (factor - 0.5) * 2 * expected['penetration']
         elif kind == 7:                      # the bit at (1 - factor) x the string's length
             state.q[k, axial.start] -= factor * guard.string_length_m / guard._bit_row[0]
         elif kind == 8:
             for name in ('bending_y', 'bending_z'):          # the first mode of w alone
                 state.q[k, system.blocks[name].columns] = 0.0
-            state.q[k, bending.columns.start] = factor * guard.lateral_max_m[node] / shape[node]
+            state.q[k, bending.columns.start] = factor * lateral[node] / shape[node]
         else:
             [state.q, state.q_rate, state.q_acceleration][k % 3][k, k] = [np.nan, np.inf][k % 2]
     forces = SimpleNamespace(**bit)
@@ -425,9 +430,10 @@ def test_a_members_torque_bound_is_that_of_its_own_random_law(config):
     system = Simulator(config).system
     law = Simulator(config).law
     germs = np.array([np.eye(2), np.diag([1.0, 1.3]), np.diag([1.0, 0.7])])
-    mean = StateGuard(system, law).torque_on_bit_max_nm
+    mean = guard_bounds(config, 0.0)['tob']
+    assert np.ndim(StateGuard(system, law).torque_on_bit_max_nm) == 0
     bounds = StateGuard(system, law, germs=germs).torque_on_bit_max_nm
-    assert np.ndim(mean) == 0 and bounds.shape == (3,)
+    assert bounds.shape == (3,)
     np.testing.assert_allclose(bounds, [mean, 1.3 * mean, mean], rtol=2e-3)
 
 
@@ -438,27 +444,25 @@ def test_the_torque_bound_of_coupled_germs_is_each_members_law_evaluated_directl
     With G12 != 0, over the envelope's points (Eq. 50), evaluated member by member;
     ``set_germs`` follows germs that change (an ensemble filter estimates them).
     """
-    from drill_twin.integrator.envelope import (ENVELOPE_TOP_DRIVE_SPEED_MAX_RAD_PER_S,
-                                                PLAUSIBLE_BLOCK_SPEED_M_PER_S)
     from drill_twin.uncertainty.germ import germs_for_realizations
     simulator = Simulator(config)
     system, law = simulator.system, simulator.law
     germs = germs_for_realizations(0.3, 7, range(12))
     assert np.min(np.abs(germs[:, 0, 1])) > 1e-3
     guard = StateGuard(system, law)
-    weight = guard.impact_weight_on_bit_n
-    omega = np.linspace(0.01, ENVELOPE_TOP_DRIVE_SPEED_MAX_RAD_PER_S, 400)
-    rop = np.clip(law.steady_rop(omega, -weight), 0.0, PLAUSIBLE_BLOCK_SPEED_M_PER_S)
+    weight = impact_weight_on_bit_n(config)
+    omega = np.linspace(0.01, TOP_SPEED_MAX_RAD_PER_S, 400)             # the guard's points
+    rop = np.clip(law.steady_rop(omega, -weight), 0.0, BLOCK_SPEED_M_PER_S)
     force, torque = law.mean(rop, omega)
     mean = np.max(np.abs(torque))
     expected = [max(np.max(np.abs(law.randomised(force, torque, rop, rop, omega,
                                                  np.broadcast_to(g, (400, 2, 2)))[1])), mean)
                 for g in germs]
     guard.set_germs(germs)
-    np.testing.assert_allclose(guard.torque_on_bit_max_nm, FORCE_MULTIPLE * np.array(expected),
+    np.testing.assert_allclose(guard.torque_on_bit_max_nm, 3.0 * np.array(expected),
                                rtol=1e-12)
     guard.set_germs(None)
-    assert guard.torque_on_bit_max_nm == pytest.approx(FORCE_MULTIPLE * mean, rel=1e-12)
+    assert guard.torque_on_bit_max_nm == pytest.approx(3.0 * mean, rel=1e-12)
 
 
 def test_the_torque_the_law_pairs_with_an_accepted_landing_is_accepted():
@@ -473,14 +477,12 @@ def test_the_torque_the_law_pairs_with_an_accepted_landing_is_accepted():
     three times the law's torque at 300 kN, so a TOB bound taken at the envelope's largest WOB
     would reset members whose WOB the guard accepts.
     """
-    from drill_twin.integrator.envelope import (ENVELOPE_TOP_DRIVE_SPEED_MAX_RAD_PER_S,
-                                                largest_torque_on_bit_nm)
     config = load_config(None, ['integration.time_step_s=0.005',
                                 'bit_rock.contact_stiffness_n_per_m=null'])   # rigid rock
+    bounds = guard_bounds(config, 0.0)
     with threadpool_limits(limits=1, user_api='blas'):
         simulator = Simulator(config)
         rig = Rig(simulator)
-        guard = StateGuard(simulator.system, simulator.law)
         weight = rig.hook_load_command_n - config.bit_rock.static_weight_on_bit_n
         rig.set_top_drive_speed(5.2)
         rig.set_hook_load(weight - 250e3)
@@ -493,9 +495,8 @@ def test_the_torque_the_law_pairs_with_an_accepted_landing_is_accepted():
             wob.append(-float(simulator.last.weight_on_bit_n[0]))
             tob.append(float(simulator.last.torque_on_bit_nm[0]))
     wob, tob = np.array(wob), np.abs(tob)
-    accepted = np.abs(wob) <= guard.weight_on_bit_max_n
-    earlier = FORCE_MULTIPLE * largest_torque_on_bit_nm(
-        simulator.law, ENVELOPE_TOP_DRIVE_SPEED_MAX_RAD_PER_S, guard.envelope.weight_on_bit_max_n)
-    assert np.max(wob) > ENVELOPE_WEIGHT_ON_BIT_MAX_N            # landings hit hard
+    accepted = np.abs(wob) <= bounds['wob']
+    earlier = 3.0 * law_torque_max_nm(config, WOB_MAX_N)      # the TOB scale at 300 kN
+    assert np.max(wob) > WOB_MAX_N                              # landings hit hard
     assert np.max(tob[accepted]) > earlier                       # beyond the envelope's TOB
-    assert np.all(tob[accepted] <= guard.torque_on_bit_max_nm)
+    assert np.all(tob[accepted] <= bounds['tob'])
