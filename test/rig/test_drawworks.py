@@ -234,10 +234,13 @@ def test_the_autodriller_feeds_line_and_never_hoists():
     assert simulator.observe().hook_velocity_m_per_s[0] < -0.4
     rig.set_weight_on_bit_setpoint(0.0)
     rig.set_axial_mode('autodriller')
-    velocities = []
+    assert drawworks.state.autodriller_integral_m_per_s == 0.0     # clamped: not -0.5 m/s
+    velocities, integral = [], []
     for _ in range(int(round(3.0 / simulator.dt))):
         rig.step()
         velocities.append(drawworks.state.block_velocity_m_per_s)
+        integral.append(drawworks.state.autodriller_integral_m_per_s)
+    assert min(integral) >= 0.0
     assert velocities[0] < -0.4                         # bumpless: from the string's speed
     assert np.all(np.diff(velocities) >= -1e-12)        # braking, never hoisting harder
     assert velocities[-1] == 0.0
@@ -268,12 +271,15 @@ def test_the_autodriller_engaged_on_a_running_block_stays_within_its_feed_rate()
     setpoint = 200e3
     rig.set_weight_on_bit_setpoint(setpoint)
     rig.set_axial_mode('autodriller')
-    wob, block = [], []
+    feed_max = config.drawworks.autodriller_feed_rate_max_m_per_s
+    assert drawworks.state.autodriller_integral_m_per_s == feed_max   # clamped: not 0.2 m/s
+    wob, block, integral = [], [], []
     for _ in range(int(round(40.0 / simulator.dt))):
         rig.step()
         wob.append(-simulator.last.weight_on_bit_n[0])
         block.append(drawworks.state.block_velocity_m_per_s)
-    feed_max = config.drawworks.autodriller_feed_rate_max_m_per_s
+        integral.append(drawworks.state.autodriller_integral_m_per_s)
+    assert 0.0 <= min(integral) and max(integral) <= feed_max
     kp = config.drawworks.autodriller_proportional_m_per_s_per_n
     deceleration = config.drawworks.block_acceleration_max_m_per_s2
     braking = (start ** 2 - feed_max ** 2) / (2 * deceleration) * _equivalent_stiffness(config)
@@ -284,6 +290,54 @@ def test_the_autodriller_engaged_on_a_running_block_stays_within_its_feed_rate()
     for bad in ('0', '-0.01', '10'):
         with pytest.raises(Exception, match='autodriller_feed_rate_max_m_per_s'):
             load_config(overrides=[f'drawworks.autodriller_feed_rate_max_m_per_s={bad}'])
+
+
+def test_the_autodriller_integral_is_held_within_its_clamp():
+    """
+    The integral v_I itself, step by step: v_I <- clip(v_I + K_i dt e, 0, v_max).
+
+    e = WOB_sp - WOB of the last step, v_max the configured feed-rate limit; engaged on a
+    block running down at 0.2 m/s the integral starts at v_max (bumpless, clamped). A stopped
+    bit is fed towards 400 kN (e > 0 throughout: the unclamped integral rises past v_max),
+    then the set-point drops to 0 (e < 0 throughout: it would fall below 0). The state is
+    read off the drawworks after every step, never through the block's velocity (which the
+    target's own clamp limits whatever the integral does).
+    """
+    config = load_config(overrides=QUIET + ['drawworks.mode=block_velocity',
+                                            'drawworks.autodriller_integral_m_per_s2_per_n=5e-8'])
+    settings = config.drawworks
+    ki, feed_max = settings.autodriller_integral_m_per_s2_per_n, \
+        settings.autodriller_feed_rate_max_m_per_s
+    simulator = Simulator(config)
+    rig = Rig(simulator)
+    drawworks = rig.drawworks
+    dt = simulator.dt
+    rig.set_top_drive_speed(0.0)
+    for _ in range(int(round(3.0 / dt))):                     # the bit stops on bottom
+        rig.step()
+    rig.set_block_velocity(0.2)
+    while drawworks.state.block_velocity_m_per_s < 0.2:
+        rig.step()
+    rig.set_weight_on_bit_setpoint(400e3)
+    rig.set_axial_mode('autodriller')
+    assert drawworks.state.autodriller_integral_m_per_s == feed_max      # not 0.2 m/s
+    expected = free = feed_max
+    integral, unclamped = [], []
+    for setpoint, seconds in ((400e3, 4.0), (0.0, 6.0)):
+        rig.set_weight_on_bit_setpoint(setpoint)
+        for _ in range(int(round(seconds / dt))):
+            error = setpoint - (-float(simulator.last.weight_on_bit_n[0]))
+            assert error > 0 if setpoint else error < 0
+            expected = min(max(expected + ki * dt * error, 0.0), feed_max)
+            free += ki * dt * error
+            rig.step()
+            integral.append(drawworks.state.autodriller_integral_m_per_s)
+            assert integral[-1] == pytest.approx(expected, rel=1e-12, abs=1e-15)
+            unclamped.append(free)
+    integral, unclamped = np.array(integral), np.array(unclamped)
+    assert np.all((0.0 <= integral) & (integral <= feed_max))
+    assert np.max(unclamped) > 2 * feed_max and np.min(unclamped) < -feed_max
+    assert np.sum(integral == feed_max) > 100 and np.sum(integral == 0.0) > 100
 
 
 # -- the drum's brake under the hook force -----------------------------------------------------
