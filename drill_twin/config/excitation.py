@@ -49,8 +49,9 @@ class BottomHolePattern:
     The undeformed bottom under the bit lies ``amplitude_m`` sin(``lobes`` phi) below the
     hole's mean bottom, phi the bit's spin angle (top-drive angle plus the bit's twist): the
     surface a roller-cone bit cuts (three lobes), the classic axial excitation of bit bounce
-    (docs/LATERAL.md, "A lobed hole bottom: bit bounce"). The bit-rock law sets the bit's velocity relative to that
-    surface. Needs a compliant rock (``bit_rock.contact_stiffness_n_per_m``).
+    (docs/LATERAL.md, "A lobed hole bottom: bit bounce"). The bit-rock law sets the bit's
+    velocity relative to that surface. Needs a compliant rock
+    (``bit_rock.contact_stiffness_n_per_m``).
     """
 
     enabled: bool = False

@@ -1,8 +1,8 @@
 """
 Contact events that mean something.
 
-One impact per contact episode, one lift-off per separation of the bit from the rock (docs/LATERAL.md,
-"Contact and lift-off episodes").
+One impact per contact episode, one lift-off per separation of the bit from the rock
+(docs/LATERAL.md, "Contact and lift-off episodes").
 
 A node whirling along the wall, or grazing it, crosses r = c (c the clearance) back and forth
 at every step; counting every onset (``Simulator.contact_onset_count``) counts that

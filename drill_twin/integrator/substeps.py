@@ -7,8 +7,8 @@ doubled back after every success (as far as dt/2, aligned on the step), one memb
 so that no member depends on the rest of its batch. A step in which a member's nodes touch or
 leave the borehole wall is integrated again on dt / ``integration.contact_substeps`` (those
 members together), so that the kink of the penalty law does not make the wall gain or lose
-energy (docs/LATERAL.md, "Steps at the wall"). The top speed is interpolated linearly over the step (the
-top drive's acceleration is constant over it), the hook load is the step's.
+energy (docs/LATERAL.md, "Steps at the wall"). The top speed is interpolated linearly over
+the step (the top drive's acceleration is constant over it), the hook load is the step's.
 
 :class:`StepRepair` holds the finer integrators (built on first use: steps that need no retry
 cost what they did) and the counters.
@@ -106,9 +106,10 @@ class StepRepair:
         A node that touches or leaves the wall within a step puts the kink of the penalty law
         inside it, where the trapezoidal rule's work is wrong by up to k p (dr - p) / 2 (p the
         penetration at the end that touches, dr the radial travel): finer steps there bring
-        the wall's net work to zero (docs/LATERAL.md, "Steps at the wall"). The members concerned are
-        integrated together, as one batch on the finer step; if that fails, member by member
-        on the retry's sub-steps, and a member that fails even so keeps its full step.
+        the wall's net work to zero (docs/LATERAL.md, "Steps at the wall"). The members
+        concerned are integrated together, as one batch on the finer step; if that fails,
+        member by member on the retry's sub-steps, and a member that fails even so keeps its
+        full step.
         ``touching_before`` (m, n_nodes): the contact flags at ``state``. Return (new_state,
         result).
         """
