@@ -16,6 +16,8 @@ from drill_twin.config import load_config
 from drill_twin.twin.engine import TwinEngine
 from drill_twin.twin.ensemble import EnsembleSettings
 
+pytestmark = pytest.mark.slow       # the module's engine runs for about 30 s
+
 LIGHT = ['reduced_basis.lateral_modes=2', 'physics.contact=false',
          'physics.finite_strain=false', 'physics.kinetic_coupling=false',
          'initial_conditions.lateral_deflection_m=0', 'integration.time_step_s=0.01',
