@@ -31,7 +31,7 @@ import sys
 
 import rclpy
 from rcl_interfaces.msg import SetParametersResult
-from rclpy._rclpy_pybind11 import RCLError
+from rclpy._rclpy_pybind11 import RCLError, UnknownROSArgsError
 from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.exceptions import NotInitializedException, ParameterException
@@ -356,8 +356,9 @@ def _run(ros_args: list[str], view: str | None = None, console: bool = False) ->
     try:
         try:
             rclpy.init(args=ros_args)
-        except RCLError as error:
-            print(f'drill-twin: ROS arguments: {_first_line(error)}', file=sys.stderr)
+        except (RCLError, UnknownROSArgsError) as error:    # the latter no RCLError
+            kind = 'unknown ' if isinstance(error, UnknownROSArgsError) else ''
+            print(f'drill-twin: ROS arguments: {kind}{_first_line(error)}', file=sys.stderr)
             return 2
         try:
             params = TwinParameters.from_values(validate_ros_arguments(ros_args))

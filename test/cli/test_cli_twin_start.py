@@ -50,8 +50,9 @@ def run_twin(*args, env, cwd):
     (('--assimilate', '--ros-args', '-p',
       'assimilation_overrides:=["assimilation.filter.inflation=0.5"]'),
      'inflation: must be >= 1'),
+    (('--ros-args', '--bogus'), "drill-twin: ROS arguments: unknown ['--bogus']"),
 ], ids=['ensemble', 'delta', '-p', 'params-file', 'unknown', 'assimilation-file',
-        'assimilation-members', 'assimilation-override'])
+        'assimilation-members', 'assimilation-override', 'unknown-ros-argument'])
 def test_out_of_range_node_parameters_are_one_line(tmp_path, env, args, words):
     if isinstance(args, str):
         path = tmp_path / 'params.yaml'
