@@ -39,6 +39,7 @@ from drill_twin.integrator.envelope import StringEnvelope
 from drill_twin.integrator.simulator import Observation, Simulator
 from drill_twin.integrator.stepping import (MAX_CONSECUTIVE_FAILURES, GuardedSimulator, TwinEvent,
                                             TwinStalled)
+from drill_twin.rig.drawworks import AxialMode
 from drill_twin.rig.rig import Rig
 from drill_twin.rig.surface import SurfaceReadings, surface_readings
 from drill_twin.twin.commands import CommandInput, CommandLimits, CommandRejected
@@ -127,6 +128,7 @@ class TwinEngine(CommandInput):
             self.rig = Rig(self.simulator)
             self.envelope = StringEnvelope.of(self.simulator.system)
             self._mean = GuardedSimulator(self.rig, first_member=0, name='the mean model')
+            self._refuse_a_start_the_door_would_refuse(config)
             initial = self._mean.guard.check(self.simulator)
             if initial:
                 raise ConfigError('configuration', '', f'the model cannot be integrated: at '
@@ -150,6 +152,14 @@ class TwinEngine(CommandInput):
         self._analyses: list = []
         self.measurements_refused = 0
         self.measurements_received = 0
+
+    def _refuse_a_start_the_door_would_refuse(self, config: DrillStringConfig) -> None:
+        """Refuse a configured hook load that the command door would refuse, with its reason."""
+        if config.operation.hook_load_n is None or self.rig.axial_mode is not AxialMode.HOOK_LOAD:
+            return
+        reason = self.envelope.hook_load_reason(config.operation.hook_load_n)
+        if reason:
+            raise ConfigError('configuration', 'operation.hook_load_n', reason)
 
     def _open_ensemble(self, worker) -> None:
         """Start the ensemble (in its worker if one was started, else in this process)."""

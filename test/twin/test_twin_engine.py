@@ -390,3 +390,31 @@ def test_a_landing_whose_weight_on_bit_still_rises_is_reported_at_the_windows_en
     assert float(events[0].values['time_to_peak_s']) == pytest.approx(window, abs=1e-9)
     assert float(events[0].values['peak_weight_on_bit_n']) == pytest.approx(wob[steps],
                                                                             rel=1e-5)
+
+
+def test_a_start_the_command_door_would_refuse_is_refused_with_its_reason(config):
+    """
+    ``operation.hook_load_n = 0`` starts no twin: as a command it would be refused.
+
+    The whole string on the bit (a hook load of 0) is far beyond the largest WOB; the start is
+    refused with the reason the door gives the same value as a command, and a hook load the
+    door accepts starts the twin.
+    """
+    from dataclasses import replace
+
+    from drill_twin.config import ConfigError
+
+    door = TwinEngine(config, EnsembleSettings(members=0))
+    with pytest.raises(CommandRejected) as as_command:
+        door.set_hook_load(0.0)
+    reason = door.envelope.hook_load_reason(0.0)
+    assert reason and reason in str(as_command.value)
+    assert door.envelope.string_weight_n > 3e5                 # 0 N: all of it on the bit
+    zero = replace(config, operation=replace(config.operation, hook_load_n=0.0))
+    with pytest.raises(ConfigError) as at_start:
+        TwinEngine(zero, EnsembleSettings(members=0))
+    assert str(at_start.value) == f'configuration: operation.hook_load_n: {reason}'
+    accepted = door.envelope.string_weight_n - 1e5              # 100 kN on the bit
+    assert door.envelope.hook_load_reason(accepted) is None
+    fine = replace(config, operation=replace(config.operation, hook_load_n=accepted))
+    assert TwinEngine(fine, EnsembleSettings(members=0)).hook_load_command == accepted
