@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 from pathlib import Path
 
 from drill_twin.cli import startup_signals
@@ -160,9 +161,25 @@ def _blamed_on_parameter(error: ConfigError, ros: list[str], model_items) -> Exc
     return UsageError(f'{origins[-1]}: {name}: {error.message}')
 
 
+DISCOVERY_RANGE = 'ROS_AUTOMATIC_DISCOVERY_RANGE'
+"""How far ROS 2 discovery reaches (Jazzy: LOCALHOST, SUBNET, OFF, SYSTEM_DEFAULT)."""
+
+
+def close_discovery(environ=os.environ) -> str:
+    """
+    Keep the twin's discovery on this host unless the environment already says otherwise.
+
+    A rig network would otherwise let any host of the same ROS domain drive the top drive.
+    Return the range in force; ``ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET`` opens the twin
+    (docs/ROS-INTERFACE.md, "Who can command the twin").
+    """
+    return environ.setdefault(DISCOVERY_RANGE, 'LOCALHOST')
+
+
 def run(args: argparse.Namespace) -> int:
     try:
         startup_signals.arm()         # a SIGINT or SIGTERM since start-up stops here
+        close_discovery()
         ros = ros_arguments(args)
         if args.web and not args.view:
             raise UsageError('--web: only with --view (the live viewer)')

@@ -162,3 +162,15 @@ def test_a_stop_signal_during_start_up_stops_the_twin_cleanly(tmp_path, number):
     assert 'rclpy' not in loaded, 'the stop signals were caught only once rclpy was loaded'
     assert process.returncode == 0, stderr
     assert 'Traceback' not in stderr and 'ensemble members' not in stderr, stderr
+
+
+def test_the_twin_keeps_discovery_on_its_host_unless_told():
+    """ROS_AUTOMATIC_DISCOVERY_RANGE: LOCALHOST by default; a range already set is kept."""
+    from drill_twin.cli.twin import close_discovery
+
+    environ = {}
+    assert close_discovery(environ) == 'LOCALHOST'
+    assert environ == {'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST'}
+    opened = {'ROS_AUTOMATIC_DISCOVERY_RANGE': 'SUBNET'}
+    assert close_discovery(opened) == 'SUBNET'
+    assert opened == {'ROS_AUTOMATIC_DISCOVERY_RANGE': 'SUBNET'}
