@@ -181,21 +181,13 @@ class MapResult:
         return [row for row in self.rows if row['failed']]
 
 
-class MapPointError(ValueError):
+class MapPointError(ConfigValueError):
     """
     A speed or WOB of the grid that the configuration refuses.
 
     ``key``: the MapSpec field (speeds_rad_per_s or weights_on_bit_n); ``str()`` is
-    ``key: message``, one line. It survives pickling.
+    ``key: message``, one line; it survives pickling (:class:`ConfigValueError`'s).
     """
-
-    def __init__(self, key: str, message: str):
-        super().__init__(f'{key}: {message}')
-        self.key = key
-        self.message = message
-
-    def __reduce__(self):
-        return type(self), (self.key, self.message)
 
 
 def point_config(config: DrillStringConfig, system, speed_rad_per_s: float | None,
